@@ -1,0 +1,209 @@
+"""Analytic Jacobians of the attitude dynamics for extended Kalman filters.
+
+The error state of the seed-000 EKF is ``δx = [δq_v, δω, δl]`` (11 entries) with the
+multiplicative attitude error ``δq = q ⊗ q̂⁻¹`` (vector part, half the small rotation angle),
+``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` the free entries of ``L = J/Jzz``. Its linearised dynamics
+are ``δẋ = C δx`` with (seed 000 eqs. 27–31)
+
+``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]``,
+``M = −∂(L⁻¹[ω×]Lω)/∂ω``, ``N = −∂(L⁻¹[ω×]Lω)/∂l``.
+
+With ``g = L⁻¹ (ω × L ω)``: ``M = L⁻¹([Lω×] − [ω×]L)`` and the ``j``-th column of ``N`` is
+``L⁻¹ (E_j g − ω × E_j ω)``, ``E_j = ∂L/∂l_j``. Every function here is checked against
+torch autograd in ``tests/filters/attitude``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from filters.attitude._array import as_arrays, matvec
+from filters.attitude.inertia import inertia_from_normalized, ratios_from_tanh
+from filters.attitude.kinematics import cross_matrix, omega_matrix, xi_matrix
+
+__all__ = [
+    "error_state_matrix",
+    "euler_rate_jacobian",
+    "euler_rate_jacobian_normalized",
+    "euler_rate_jacobian_tanh",
+    "state_jacobian",
+    "transition_matrix",
+]
+
+# ∂L/∂l_j for l = [Lxx, Lyy, Lxy, Lxz, Lyz].
+_BASIS = np.zeros((5, 3, 3))
+_BASIS[0, 0, 0] = _BASIS[1, 1, 1] = 1.0
+_BASIS[2, 0, 1] = _BASIS[2, 1, 0] = 1.0
+_BASIS[3, 0, 2] = _BASIS[3, 2, 0] = 1.0
+_BASIS[4, 1, 2] = _BASIS[4, 2, 1] = 1.0
+
+
+def euler_rate_jacobian(omega: Any, inertia: Any) -> Any:
+    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×]J)`` of the torque-free Euler equations (``M`` of seed 000).
+
+    Parameters
+    ----------
+    omega : (..., 3) array
+        Body rates (rad/s).
+    inertia : (..., 3, 3) array
+        Body-frame inertia (or ``L``).
+
+    Returns
+    -------
+    (..., 3, 3) array
+    """
+    xp, (w, j) = as_arrays(omega, inertia)
+    return xp.linalg.inv(j) @ (cross_matrix(matvec(j, w)) - cross_matrix(w) @ j)
+
+
+def euler_rate_jacobian_normalized(omega: Any, l: Any) -> Any:
+    """``N = ∂ω̇/∂l`` for ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` (seed 000 eq. 30).
+
+    Parameters
+    ----------
+    omega : (..., 3) array
+        Body rates (rad/s).
+    l : (..., 5) array
+        Free entries of ``L = J/Jzz``.
+
+    Returns
+    -------
+    (..., 3, 5) array
+    """
+    xp, (w, l) = as_arrays(omega, l)
+    big_l = inertia_from_normalized(l)
+    l_inv = xp.linalg.inv(big_l)
+    g = matvec(l_inv, xp.linalg.cross(*xp.broadcast_arrays(w, matvec(big_l, w))))
+    basis = xp.asarray(_BASIS, dtype=w.dtype, device=getattr(w, "device", None))
+    w_b = w[..., None, :]
+    cols = matvec(basis, g[..., None, :]) - xp.linalg.cross(
+        *xp.broadcast_arrays(w_b, matvec(basis, w_b))
+    )
+    return xp.matrix_transpose(matvec(l_inv[..., None, :, :], cols))
+
+
+def euler_rate_jacobian_tanh(omega: Any, k: Any) -> Any:
+    """``∂ω̇/∂k`` for the principal-axis tanh inertia form (seed 004).
+
+    With ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]``, ``px = −tanh k2``, ``py = tanh k1``,
+    ``pz = tanh(k2 − k1)``.
+
+    Parameters
+    ----------
+    omega : (..., 3) array
+        Body rates (rad/s).
+    k : (..., 2) array
+
+    Returns
+    -------
+    (..., 3, 2) array
+    """
+    xp, (w, k) = as_arrays(omega, k)
+    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    p = ratios_from_tanh(k)
+    dpx = -(1 - p[..., 0] ** 2)  # ∂px/∂k2
+    dpy = 1 - p[..., 1] ** 2  # ∂py/∂k1
+    dpz = 1 - p[..., 2] ** 2  # ∂pz/∂k2 = −∂pz/∂k1
+    zero = xp.zeros_like(x)
+    return xp.stack(
+        [
+            xp.stack([zero, dpx * y * z], axis=-1),
+            xp.stack([dpy * z * x, zero], axis=-1),
+            xp.stack([-dpz * x * y, dpz * x * y], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def error_state_matrix(omega: Any, l: Any) -> Any:
+    """The 11×11 matrix ``C`` of the seed-000 error-state dynamics ``δẋ = C δx``.
+
+    Parameters
+    ----------
+    omega : (..., 3) array
+        Estimated body rates (rad/s).
+    l : (..., 5) array
+        Estimated ``[Lxx, Lyy, Lxy, Lxz, Lyz]``.
+
+    Returns
+    -------
+    (..., 11, 11) array
+        Rows/columns ordered ``[δq_v (3), δω (3), δl (5)]``.
+    """
+    xp, (w, l) = as_arrays(omega, l)
+    batch = xp.broadcast_shapes(w.shape[:-1], l.shape[:-1])
+    eye = xp.eye(3, dtype=w.dtype, device=getattr(w, "device", None))
+    zeros = xp.zeros(batch + (3, 5), dtype=w.dtype, device=getattr(w, "device", None))
+    top = xp.concat(
+        [
+            xp.broadcast_to(-cross_matrix(w), batch + (3, 3)),
+            xp.broadcast_to(0.5 * eye, batch + (3, 3)),
+            zeros,
+        ],
+        axis=-1,
+    )
+    middle = xp.concat(
+        [
+            xp.zeros(batch + (3, 3), dtype=w.dtype, device=getattr(w, "device", None)),
+            xp.broadcast_to(euler_rate_jacobian(w, inertia_from_normalized(l)), batch + (3, 3)),
+            xp.broadcast_to(euler_rate_jacobian_normalized(w, l), batch + (3, 5)),
+        ],
+        axis=-1,
+    )
+    bottom = xp.zeros(batch + (5, 11), dtype=w.dtype, device=getattr(w, "device", None))
+    return xp.concat([top, middle, bottom], axis=-2)
+
+
+def state_jacobian(state: Any, inertia: Any) -> Any:
+    """``∂ẋ/∂x`` (7×7) of the full torque-free state ``x = [q, ω]``.
+
+    ``∂q̇/∂q = ½ Ω(ω)``, ``∂q̇/∂ω = ½ Ξ(q)``, ``∂ω̇/∂q = 0``, ``∂ω̇/∂ω`` from
+    :func:`euler_rate_jacobian`.
+
+    Parameters
+    ----------
+    state : (..., 7) array
+    inertia : (..., 3, 3) array
+
+    Returns
+    -------
+    (..., 7, 7) array
+    """
+    xp, (x, j) = as_arrays(state, inertia)
+    q, w = x[..., :4], x[..., 4:]
+    batch = x.shape[:-1]
+    top = xp.concat([0.5 * omega_matrix(w), 0.5 * xi_matrix(q)], axis=-1)
+    bottom = xp.concat(
+        [
+            xp.zeros(batch + (3, 4), dtype=x.dtype, device=getattr(x, "device", None)),
+            xp.broadcast_to(euler_rate_jacobian(w, j), batch + (3, 3)),
+        ],
+        axis=-1,
+    )
+    return xp.concat([top, bottom], axis=-2)
+
+
+def transition_matrix(matrix: Any, dt: float) -> Any:
+    """Discrete state-transition matrix ``Φ = exp(C Δt)`` (seed 000 eq. 32, exact form).
+
+    Parameters
+    ----------
+    matrix : (..., n, n) array
+        Continuous-time system matrix ``C``.
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    (..., n, n) array
+    """
+    _, (c,) = as_arrays(matrix)
+    if isinstance(c, np.ndarray):
+        from scipy.linalg import expm
+
+        return expm(c * dt)
+    import torch
+
+    return torch.linalg.matrix_exp(c * dt)

@@ -1,0 +1,1 @@
+"""Subcommands of the ``lightcurve`` CLI, one module each (see :mod:`lightcurve.cli`)."""

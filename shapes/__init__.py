@@ -1,0 +1,1 @@
+"""Facet shape models, materials, primitives, mesh IO and the shape library."""
