@@ -135,24 +135,24 @@ def error_state_matrix(omega: Any, l: Any) -> Any:
     xp, (w, l) = as_arrays(omega, l)
     batch = xp.broadcast_shapes(w.shape[:-1], l.shape[:-1])
     eye = xp.eye(3, dtype=w.dtype, device=getattr(w, "device", None))
-    zeros = xp.zeros(batch + (3, 5), dtype=w.dtype, device=getattr(w, "device", None))
+    zeros = xp.zeros((*batch, 3, 5), dtype=w.dtype, device=getattr(w, "device", None))
     top = xp.concat(
         [
-            xp.broadcast_to(-cross_matrix(w), batch + (3, 3)),
-            xp.broadcast_to(0.5 * eye, batch + (3, 3)),
+            xp.broadcast_to(-cross_matrix(w), (*batch, 3, 3)),
+            xp.broadcast_to(0.5 * eye, (*batch, 3, 3)),
             zeros,
         ],
         axis=-1,
     )
     middle = xp.concat(
         [
-            xp.zeros(batch + (3, 3), dtype=w.dtype, device=getattr(w, "device", None)),
-            xp.broadcast_to(euler_rate_jacobian(w, inertia_from_normalized(l)), batch + (3, 3)),
-            xp.broadcast_to(euler_rate_jacobian_normalized(w, l), batch + (3, 5)),
+            xp.zeros((*batch, 3, 3), dtype=w.dtype, device=getattr(w, "device", None)),
+            xp.broadcast_to(euler_rate_jacobian(w, inertia_from_normalized(l)), (*batch, 3, 3)),
+            xp.broadcast_to(euler_rate_jacobian_normalized(w, l), (*batch, 3, 5)),
         ],
         axis=-1,
     )
-    bottom = xp.zeros(batch + (5, 11), dtype=w.dtype, device=getattr(w, "device", None))
+    bottom = xp.zeros((*batch, 5, 11), dtype=w.dtype, device=getattr(w, "device", None))
     return xp.concat([top, middle, bottom], axis=-2)
 
 
@@ -177,8 +177,8 @@ def state_jacobian(state: Any, inertia: Any) -> Any:
     top = xp.concat([0.5 * omega_matrix(w), 0.5 * xi_matrix(q)], axis=-1)
     bottom = xp.concat(
         [
-            xp.zeros(batch + (3, 4), dtype=x.dtype, device=getattr(x, "device", None)),
-            xp.broadcast_to(euler_rate_jacobian(w, j), batch + (3, 3)),
+            xp.zeros((*batch, 3, 4), dtype=x.dtype, device=getattr(x, "device", None)),
+            xp.broadcast_to(euler_rate_jacobian(w, j), (*batch, 3, 3)),
         ],
         axis=-1,
     )

@@ -93,9 +93,7 @@ def rk4_step(derivative: Derivative, x: Any, dt: float) -> Any:
     return xp.concat([quaternion_normalize(out[..., :4]), out[..., 4:]], axis=-1)
 
 
-def propagate_rk4(
-    x0: Any, inertia: Any, dt: float, n_steps: int, substeps: int = 1
-) -> Any:
+def propagate_rk4(x0: Any, inertia: Any, dt: float, n_steps: int, substeps: int = 1) -> Any:
     """Propagate a batch of torque-free states with fixed-step RK4.
 
     Parameters

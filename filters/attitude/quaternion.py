@@ -346,7 +346,7 @@ def quaternion_to_grp(q: Any, a: float = 1.0, f: float | None = None) -> Any:
     (..., 3) array
     """
     f = 2.0 * (a + 1.0) if f is None else f
-    xp, (q,) = as_arrays(q)
+    _xp, (q,) = as_arrays(q)
     q = quaternion_canonical(q)
     return f * q[..., :3] / (a + q[..., 3:])
 
@@ -463,7 +463,7 @@ def random_quaternion(
     """
     rng = np.random.default_rng(rng)
     shape = (size,) if isinstance(size, int) else tuple(size)
-    q = rng.standard_normal(shape + (4,))
+    q = rng.standard_normal((*shape, 4))
     return quaternion_canonical(q / np.linalg.norm(q, axis=-1, keepdims=True))
 
 
@@ -493,4 +493,3 @@ def quaternion_mean(q: Any, weights: Any = None) -> Any:
     m = xp.sum(weights[..., :, None, None] * (q[..., :, None] * q[..., None, :]), axis=-3)
     _, vectors = xp.linalg.eigh(m)
     return quaternion_canonical(vectors[..., :, -1])
-
