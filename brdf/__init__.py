@@ -1,1 +1,59 @@
-"""Reflectance models (BRDFs) for facet light curves; a leaf package (numpy + torch only)."""
+"""Reflectance models (BRDFs) for facet light curves; a leaf package (numpy + torch only).
+
+Models (``docs/brdf.md`` gives the exact forms): Lambert, energy-normalised Phong,
+Cook–Torrance, Ashikhmin–Shirley and Lommel–Seeliger (DAMIT). Each has a vector form of unit
+``(..., 3)`` directions and a fast cosine form of ``n·L``, ``n·V`` and ``L·V`` for the renderer;
+both accept numpy arrays or torch tensors (float32/float64, differentiable in the parameters).
+
+>>> import brdf
+>>> model = brdf.get("cook-torrance", rd=0.2, rs=0.6, m=0.3, f0=0.9)
+>>> rho = model([0, 0, 1], [0, 0.6, 0.8], [0, -0.6, 0.8])   # sr⁻¹
+"""
+
+from brdf import materials
+from brdf.ashikhmin_shirley import ashikhmin_shirley, ashikhmin_shirley_from_cosines
+from brdf.cook_torrance import cook_torrance, cook_torrance_from_cosines
+from brdf.fitting import FitResult, fit
+from brdf.lambert import lambert, lambert_from_cosines
+from brdf.lommel_seeliger import lommel_seeliger, lommel_seeliger_from_cosines, phase_function
+from brdf.phong import phong, phong_from_cosines
+from brdf.quadrature import albedo, reciprocity_error
+from brdf.registry import (
+    BRDF,
+    BRDFParameterError,
+    ModelInfo,
+    ParameterSpec,
+    available,
+    describe,
+    get,
+)
+from brdf.tables import BRDFTable, BRDFTableError, read_starlink_table
+
+__all__ = [
+    "BRDF",
+    "BRDFParameterError",
+    "BRDFTable",
+    "BRDFTableError",
+    "FitResult",
+    "ModelInfo",
+    "ParameterSpec",
+    "albedo",
+    "ashikhmin_shirley",
+    "ashikhmin_shirley_from_cosines",
+    "available",
+    "cook_torrance",
+    "cook_torrance_from_cosines",
+    "describe",
+    "fit",
+    "get",
+    "lambert",
+    "lambert_from_cosines",
+    "lommel_seeliger",
+    "lommel_seeliger_from_cosines",
+    "materials",
+    "phase_function",
+    "phong",
+    "phong_from_cosines",
+    "read_starlink_table",
+    "reciprocity_error",
+]

@@ -1,0 +1,206 @@
+"""Fit every reflectance model to the Starlink v1.5 laboratory BRDF tables; plot data vs fit.
+
+Data: ``data/starlink/chassis_brdf.csv`` and ``solar_array_brdf.csv`` (Fankhauser, Askari &
+Tyson 2023, 532 nm, in-plane scans at incidence zenith 5°, 41.4°, 60°, 75°). The rows at
+scatter zenith ±90° hold the value 1e-4 sr⁻¹ in every scan, a floor of the instrument at the
+horizon rather than a measurement; they are excluded. Each model is fitted in log10 space
+(`brdf.fit`), Ashikhmin–Shirley isotropically (``nv`` tied to ``nu``: in-plane data do not
+constrain anisotropy).
+
+Prints JSON (RMS log10 residuals per model and per incidence, parameters with 1σ, timings,
+machine info) and writes the polar plots ``docs/figures/starlink_<material>_brdf.png``.
+
+Usage: ``python benchmarks/starlink_brdf.py [--figures DIR] [--starts N]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import scipy
+import torch
+
+import brdf
+
+ROOT = Path(__file__).resolve().parent.parent
+MATERIALS = {"chassis": "chassis_brdf.csv", "solar_array": "solar_array_brdf.csv"}
+FIT_OPTIONS = {"ashikhmin-shirley": {"tied": {"nv": "nu"}}}
+STYLES = {
+    "lambert": ("tab:gray", ":"),
+    "phong": ("tab:blue", "-"),
+    "cook-torrance": ("tab:red", "-"),
+    "ashikhmin-shirley": ("tab:green", "--"),
+    "lommel-seeliger": ("tab:purple", "-."),
+}
+LOG_FLOOR = -3.5  # plot radius 0 is 10^LOG_FLOOR sr⁻¹
+
+
+def load(name: str) -> tuple[brdf.BRDFTable, int]:
+    """The table without the ±90° floor rows, and how many rows were dropped."""
+    table = brdf.read_starlink_table(ROOT / "data" / "starlink" / MATERIALS[name])
+    keep = np.abs(table.zenith_out) < 90.0
+    return table.select(keep), int((~keep).sum())
+
+
+def per_incidence_rms(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str, float]:
+    incidence = table.zenith_in[result.used]
+    return {
+        f"{angle:g}": float(np.sqrt(np.mean(result.residuals[incidence == angle] ** 2)))
+        for angle in np.unique(incidence)
+    }
+
+
+def model_curve(model: brdf.BRDF, incidence_deg: float, zenith_out_deg: np.ndarray) -> np.ndarray:
+    table = brdf.BRDFTable.from_columns(
+        {
+            "zenith_in": np.full_like(zenith_out_deg, incidence_deg),
+            "azimuth_in": np.full_like(zenith_out_deg, -180.0),
+            "zenith_out": zenith_out_deg,
+            "azimuth_out": np.zeros_like(zenith_out_deg),
+            "value": np.ones_like(zenith_out_deg),
+        }
+    )
+    light, view = table.directions()
+    return model(np.array([0.0, 0.0, 1.0]), light, view, tangent=np.array([1.0, 0.0, 0.0]))
+
+
+def radius(values: np.ndarray) -> np.ndarray:
+    return np.clip(np.log10(np.maximum(values, 1e-30)) - LOG_FLOOR, 0.0, None)
+
+
+def plot(name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path: Path) -> None:
+    """Polar plots (angle = signed scatter zenith, radius = log10 BRDF) of data and fits."""
+    incidences = np.unique(table.zenith_in)
+    columns = 2
+    rows_of_plots = -(-len(incidences) // columns)
+    figure, axes = plt.subplots(
+        rows_of_plots,
+        columns,
+        subplot_kw={"projection": "polar"},
+        figsize=(9.0, 3.6 * rows_of_plots + 1.2),
+        squeeze=False,
+    )
+    zenith_fine = np.linspace(-89.5, 89.5, 3581)
+    top = max(np.log10(table.value.max()), 1.0) - LOG_FLOOR + 0.3
+    for axis, incidence in zip(axes.ravel(), incidences, strict=False):
+        rows = table.zenith_in == incidence
+        axis.set_theta_zero_location("N")
+        axis.set_theta_direction(-1)
+        axis.set_thetamin(-90)
+        axis.set_thetamax(90)
+        axis.set_ylim(0, top)
+        ticks = np.arange(np.ceil(LOG_FLOOR), np.floor(top + LOG_FLOOR) + 1, 2)
+        axis.set_yticks(ticks - LOG_FLOOR, [f"$10^{{{int(t)}}}$" for t in ticks], fontsize=7)
+        for model_name, result in fits.items():
+            colour, style = STYLES[model_name]
+            values = model_curve(result.brdf(), incidence, zenith_fine)
+            axis.plot(
+                np.radians(zenith_fine),
+                radius(values),
+                color=colour,
+                linestyle=style,
+                linewidth=1.0,
+                label=f"{model_name} ({result.rms:.2f} dex)",
+            )
+        axis.plot(
+            np.radians(table.zenith_out[rows]),
+            radius(table.value[rows]),
+            "k.",
+            markersize=2.5,
+            label="lab data (532 nm)",
+        )
+        axis.annotate(
+            "",
+            xy=(np.radians(-incidence), top),
+            xytext=(0, 0),
+            arrowprops={"arrowstyle": "<-", "color": "orange"},
+        )
+        axis.set_title(f"incidence {incidence:g}°", fontsize=9, pad=-6)
+        axis.tick_params(axis="x", labelsize=7)
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
+    figure.suptitle(
+        f"Starlink v1.5 {name.replace('_', ' ')}: in-plane BRDF (sr⁻¹, log radius) vs "
+        "scatter zenith; orange arrow = Sun",
+        fontsize=10,
+    )
+    figure.subplots_adjust(bottom=0.12, top=0.9, hspace=0.05, wspace=0.15)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".png", delete=False) as handle:
+        temporary = Path(handle.name)
+    try:
+        figure.savefig(temporary, dpi=110)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+        plt.close(figure)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures")
+    parser.add_argument("--starts", type=int, default=5, help="fit starting points per model")
+    args = parser.parse_args(argv)
+    report: dict = {
+        "machine": {
+            "processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(),
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "torch": torch.__version__,
+        },
+        "residual": "log10(model/data), dex",
+        "materials": {},
+    }
+    for name in MATERIALS:
+        table, dropped = load(name)
+        fits, entries = {}, {}
+        for model_name in brdf.available():
+            start = time.perf_counter()
+            result = brdf.fit(
+                model_name, table, starts=args.starts, **FIT_OPTIONS.get(model_name, {})
+            )
+            elapsed = time.perf_counter() - start
+            fits[model_name] = result
+            entries[model_name] = {
+                "rms_dex": result.rms,
+                "rms_dex_per_incidence": per_incidence_rms(table, result),
+                "median_abs_dex": float(np.median(np.abs(result.residuals))),
+                "max_abs_dex": float(np.max(np.abs(result.residuals))),
+                "params": result.params,
+                "sigma": result.uncertainties,
+                "success": result.success,
+                "message": result.message,
+                "seconds": elapsed,
+            }
+        best = min(entries, key=lambda m: entries[m]["rms_dex"])
+        figure = args.figures / f"starlink_{name}_brdf.png"
+        plot(name, table, fits, figure)
+        report["materials"][name] = {
+            "rows_used": int(fits["lambert"].used.sum()),
+            "rows_dropped_horizon_floor": dropped,
+            "models": entries,
+            "best": best,
+            "lambert_over_best_rms": entries["lambert"]["rms_dex"] / entries[best]["rms_dex"],
+            "figure": str(figure.relative_to(ROOT) if figure.is_relative_to(ROOT) else figure),
+        }
+    json.dump(report, sys.stdout, indent=2)
+    print()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

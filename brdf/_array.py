@@ -1,0 +1,76 @@
+"""Input handling shared by the BRDF kernels: one code path for numpy arrays and torch tensors.
+
+The kernels are written against the array-API namespace returned here, so the same lines run
+on numpy arrays and on torch tensors (CPU or GPU, with autograd). Real scalar parameters are
+kept as Python floats: they then fold into the arithmetic without allocating full-size arrays
+and without promoting float32 inputs to float64.
+"""
+
+from __future__ import annotations
+
+from numbers import Real
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+from array_api_compat import array_namespace, is_torch_array
+
+__all__ = ["prepare"]
+
+
+def prepare(
+    arrays: tuple[Any, ...], params: tuple[Any, ...] = ()
+) -> tuple[ModuleType, tuple[Any, ...], tuple[Any, ...]]:
+    """Resolve the array namespace of a kernel call and convert its inputs.
+
+    If any input is a torch tensor, everything becomes tensors of the dtype and device of the
+    first floating-point tensor (float64 when none is floating); otherwise numpy arrays
+    (float64 unless already float32/float64).
+
+    Parameters
+    ----------
+    arrays : tuple
+        Geometric inputs (cosines or direction vectors); always returned as arrays, ``None``
+        passes through.
+    params : tuple
+        Model parameters; real scalars are returned as Python floats, ``None`` passes through,
+        anything else as an array.
+
+    Returns
+    -------
+    xp : module
+        ``array_api_compat.numpy`` or ``array_api_compat.torch``.
+    arrays, params : tuple
+        The converted inputs, in order.
+    """
+    tensors = [v for v in (*arrays, *params) if is_torch_array(v)]
+    if tensors:
+        import torch
+
+        floating = [t for t in tensors if t.is_floating_point()]
+        dtype = floating[0].dtype if floating else torch.float64
+        device = (floating or tensors)[0].device
+
+        def convert(value: Any) -> Any:
+            if is_torch_array(value):
+                return value if value.is_floating_point() else value.to(dtype)
+            return torch.as_tensor(np.asarray(value), dtype=dtype, device=device)
+
+    else:
+
+        def convert(value: Any) -> Any:
+            array = np.asarray(value)
+            if array.dtype not in (np.float32, np.float64):
+                array = array.astype(np.float64)
+            return array
+
+    converted_arrays = tuple(None if v is None else convert(v) for v in arrays)
+    converted_params = tuple(
+        None if v is None else float(v) if _is_real_scalar(v) else convert(v) for v in params
+    )
+    xp = array_namespace(*tensors) if tensors else array_namespace(np.empty(0))
+    return xp, converted_arrays, converted_params
+
+
+def _is_real_scalar(value: Any) -> bool:
+    return isinstance(value, Real) and not isinstance(value, bool)

@@ -1,0 +1,284 @@
+"""Least-squares fits of reflectance-model parameters to tabulated BRDF measurements.
+
+`fit` minimises, by default, the log-space residuals ``r = log10(ρ_model) − log10(ρ_measured)``
+(dex) with `scipy.optimize.least_squares` (trust-region reflective, box bounds). Specular
+materials span many decades (the Starlink solar array: 10⁻³ to 5·10⁴ sr⁻¹) so the logarithm
+gives every measurement a comparable weight. Exponent-like parameters (``log_scale`` in
+`brdf.describe`) are searched in their logarithm; the fit restarts from several points spread
+over their ranges (``starts``) and keeps the best. For Phong and Cook–Torrance with ``rd`` and
+``rs`` both free, the search variable is ``rd/(1 − rs)`` in [0, 1] so ``rd + rs ≤ 1`` holds.
+
+The 1σ uncertainties come from the Jacobian at the optimum,
+``C = s² (JᵀJ)⁻¹`` with ``s² = Σ r²/(N − p)``, mapped to the model parameters through the
+derivative of the search-variable transform.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from brdf._geometry import cosines, tangent_cosines
+from brdf.registry import _SUMMED_ALBEDOS, BRDF, BRDFParameterError, ModelInfo, describe, get
+from brdf.tables import BRDFTable
+
+__all__ = ["FitResult", "fit"]
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """Outcome of `fit`.
+
+    Attributes
+    ----------
+    model : str
+        Registry name.
+    params : dict
+        All parameters at the optimum (free, fixed and tied).
+    uncertainties : dict
+        1σ of each free and tied parameter (same units; ``inf`` when the data do not
+        constrain it).
+    rms : float
+        RMS residual: log10 units (dex) for a log fit, sr⁻¹ otherwise.
+    residuals : (N_used,) ndarray
+        ``log10(model/data)`` (log fit) or ``model − data`` per used row.
+    used : (N,) bool ndarray
+        Rows of the table that entered the fit (positive value, ``n·L > 0`` and ``n·V > 0``).
+    free : tuple of str
+        Fitted parameter names.
+    success : bool
+        Optimiser converged and the parameters pass `brdf.get` validation.
+    message : str
+    log : bool
+        Whether the residuals are in log space.
+    """
+
+    model: str
+    params: dict[str, float]
+    uncertainties: dict[str, float]
+    rms: float
+    residuals: np.ndarray
+    used: np.ndarray
+    free: tuple[str, ...]
+    success: bool
+    message: str
+    log: bool = True
+    nfev: int = field(default=0)
+
+    def brdf(self) -> BRDF:
+        """The fitted model as a validated `BRDF`."""
+        return get(self.model, **self.params)
+
+
+@dataclass(frozen=True)
+class _Search:
+    """Map between the search vector ``x`` and the model parameters."""
+
+    info: ModelInfo
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    tied: dict[str, str]
+    bounds: dict[str, tuple[float, float]]
+    share: bool  # rd is searched as rd/(1 − rs)
+
+    def is_log(self, name: str) -> bool:
+        return self.info.parameter(name).log_scale
+
+    def to_x(self, params: Mapping[str, float]) -> np.ndarray:
+        x = []
+        for name in self.free:
+            value = params[name]
+            if name == "rd" and self.share:
+                value = value / (1.0 - params["rs"]) if params["rs"] < 1.0 else 0.0
+            x.append(math.log(value) if self.is_log(name) else value)
+        return np.array(x)
+
+    def x_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        low, high = [], []
+        for name in self.free:
+            lo, hi = (0.0, 1.0) if name == "rd" and self.share else self.bounds[name]
+            if self.is_log(name):
+                lo, hi = math.log(lo), math.log(hi)
+            low.append(lo)
+            high.append(hi)
+        return np.array(low), np.array(high)
+
+    def to_params(self, x: np.ndarray) -> dict[str, float]:
+        values = {
+            name: float(math.exp(v) if self.is_log(name) else v)
+            for name, v in zip(self.free, x, strict=True)
+        }
+        values.update(self.fixed)
+        if self.share:
+            values["rd"] = values["rd"] * (1.0 - values["rs"])
+        for name, source in self.tied.items():
+            values[name] = values[source]
+        return values
+
+
+def _starting_points(search: _Search, initial: np.ndarray, starts: int) -> list[np.ndarray]:
+    """The initial point, then points spread over the ranges of the log-scaled parameters."""
+    low, high = search.x_bounds()
+    points = [np.clip(initial, low, high)]
+    for k in range(1, starts):
+        point = points[0].copy()
+        fraction = (k - 0.5) / (starts - 1)
+        for index, name in enumerate(search.free):
+            if search.is_log(name):
+                point[index] = low[index] + fraction * (high[index] - low[index])
+        points.append(point)
+    return points
+
+
+def fit(
+    model_name: str,
+    table: BRDFTable,
+    params: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    tied: Mapping[str, str] | None = None,
+    log: bool = True,
+    starts: int = 5,
+    floor: float = 1e-12,
+) -> FitResult:
+    """Fit the parameters of ``model_name`` to tabulated BRDF measurements.
+
+    Parameters
+    ----------
+    model_name : str
+        Registry name (`brdf.available`).
+    table : BRDFTable
+        Measurements; the sample normal is ``z`` and its tangent (``u`` of anisotropic models)
+        is azimuth 0.
+    params : mapping, optional
+        Initial values of the free parameters (defaults: `brdf.describe` defaults).
+    bounds : mapping, optional
+        ``name → (low, high)`` search bounds (defaults: each parameter's ``fit_range``).
+    fixed : mapping, optional
+        Parameters held at the given values.
+    tied : mapping, optional
+        ``name → other``: parameter ``name`` equals ``other`` (e.g. ``{"nv": "nu"}`` for an
+        isotropic Ashikhmin–Shirley fit to in-plane data).
+    log : bool
+        Fit log10 residuals (default) or linear residuals.
+    starts : int
+        Number of starting points (≥ 1).
+    floor : float
+        Lower clamp of the model value (sr⁻¹) before the logarithm.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    brdf.BRDFParameterError
+        Unknown model or parameter names, or bounds outside a parameter's valid range.
+    ValueError
+        Fewer usable rows than free parameters.
+    """
+    from scipy.optimize import least_squares
+
+    info = describe(model_name)
+    fixed = {name: float(v) for name, v in (fixed or {}).items()}
+    tied = dict(tied or {})
+    for name in (*fixed, *tied, *tied.values(), *(params or {}), *(bounds or {})):
+        info.parameter(name)
+    free = tuple(n for n in info.parameter_names if n not in fixed and n not in tied)
+    search_bounds = {}
+    for name in free:
+        spec = info.parameter(name)
+        lo, hi = (bounds or {}).get(name, spec.fit_range)
+        if not (lo < hi and spec.contains(np.array([lo, hi])).all()):
+            raise BRDFParameterError(
+                f"{info.name}: bounds ({lo:g}, {hi:g}) of {name!r} must be increasing and "
+                f"inside its valid range {spec.range_text}"
+            )
+        search_bounds[name] = (float(lo), float(hi))
+    share = info.name in _SUMMED_ALBEDOS and "rd" in free and "rs" in free
+    if not share and info.name in _SUMMED_ALBEDOS:
+        # One of rd, rs is fixed: bound the other so that rd + rs ≤ 1.
+        for name, other in (("rd", "rs"), ("rs", "rd")):
+            if name in free and other in fixed:
+                lo, hi = search_bounds[name]
+                search_bounds[name] = (lo, min(hi, 1.0 - fixed[other]))
+    search = _Search(info, free, fixed, tied, search_bounds, share)
+
+    light, view = table.directions()
+    normal, tangent = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    nl, nv, lv = cosines(np, normal, light, view)
+    hu, hv = tangent_cosines(np, normal, tangent, light, view)
+    used = (nl > 0) & (nv > 0) & ((table.value > 0) if log else True)
+    if used.sum() <= len(free):
+        raise ValueError(
+            f"{table.source or 'table'}: {int(used.sum())} usable rows for {len(free)} parameters"
+        )
+    nl, nv, lv, hu, hv = nl[used], nv[used], lv[used], hu[used], hv[used]
+    target = np.log10(table.value[used]) if log else table.value[used]
+    extra = {"hu": hu, "hv": hv} if info.name == "ashikhmin-shirley" else {}
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        model = info.cosine(nl, nv, lv, **search.to_params(x), **extra)
+        return (np.log10(np.maximum(model, floor)) if log else model) - target
+
+    initial = {spec.name: spec.default for spec in info.parameters}
+    initial.update(params or {})
+    initial.update(fixed)
+    low, high = search.x_bounds()
+    best = None
+    for x0 in _starting_points(search, search.to_x(initial), max(1, starts)):
+        result = least_squares(residuals, x0, bounds=(low, high), method="trf")
+        if best is None or result.cost < best.cost:
+            best = result
+    values = search.to_params(best.x)
+    uncertainties = _uncertainties(search, best, len(target))
+    uncertainties.update({n: uncertainties.get(s, 0.0) for n, s in tied.items()})
+    message = best.message
+    success = bool(best.success)
+    try:
+        get(info.name, **values)
+    except ValueError as error:
+        success, message = False, f"{message}; {error}"
+    return FitResult(
+        model=info.name,
+        params=values,
+        uncertainties=uncertainties,
+        rms=float(np.sqrt(np.mean(best.fun**2))),
+        residuals=best.fun.copy(),
+        used=used,
+        free=free,
+        success=success,
+        message=message,
+        log=log,
+        nfev=int(best.nfev),
+    )
+
+
+def _uncertainties(search: _Search, result: Any, count: int) -> dict[str, float]:
+    """1σ of the free parameters from the Jacobian at the optimum."""
+    jacobian = result.jac
+    dof = max(count - jacobian.shape[1], 1)
+    variance = 2.0 * result.cost / dof
+    information = jacobian.T @ jacobian
+    eigenvalues, eigenvectors = np.linalg.eigh(information)
+    null = eigenvalues <= 1e-12 * max(eigenvalues.max(), np.finfo(float).tiny)
+    covariance_x = variance * np.linalg.pinv(information, hermitian=True)
+    # Directions the data do not constrain have unbounded uncertainty.
+    unconstrained = np.any(np.abs(eigenvectors[:, null]) > 1e-6, axis=1)
+    # Derivative of the free parameters with respect to the search variables.
+    step = 1e-7
+    base = search.to_params(result.x)
+    transform = np.empty((len(search.free), len(search.free)))
+    for j in range(len(search.free)):
+        shifted = result.x.copy()
+        shifted[j] += step
+        moved = search.to_params(shifted)
+        transform[:, j] = [(moved[n] - base[n]) / step for n in search.free]
+    covariance = transform @ covariance_x @ transform.T
+    sigma = np.sqrt(np.abs(np.diag(covariance)))
+    sigma[unconstrained | ~np.isfinite(sigma)] = np.inf
+    return {name: float(s) for name, s in zip(search.free, sigma, strict=True)}
