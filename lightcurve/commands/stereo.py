@@ -1,0 +1,175 @@
+"""Monte Carlo study of stereo relative-state and inertia estimation (seed 004).
+
+Runs ``--runs`` seeded truth/filter pairs of the scenario (batched) and writes
+``OUT/summary.json`` (RTMSE over the scenario's final window of attitude, rate, position,
+velocity and inertia parameters; NEES mean against its 95 % band; run count) and
+``OUT/history.csv`` (per frame: run-RMS errors, run-RMS filter sigmas, mean NEES).
+The scenario file format is described in ``docs/stereo.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from filters.attitude import euler321_to_quaternion
+from filters.camera import PinholeCamera
+from filters.hill import EARTH_MU, mean_motion
+from filters.stereo import StereoCamera
+from filters.stereo_montecarlo import StereoScenario, run_monte_carlo
+from lightcurve.commands._scenario_toml import ScenarioError, load_toml
+
+NAME = "stereo"
+HELP = "Monte Carlo of the stereo relative-state and inertia EKF (seed 004)"
+ORDER = 62
+
+EARTH_RADIUS_M = 6378.137e3
+
+
+def load_stereo_scenario(path: str | Path) -> StereoScenario:
+    """Read a stereo scenario TOML file (format in ``docs/stereo.md``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    StereoScenario
+        In SI units (degrees and kilometres converted here).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, table and field of the first problem.
+    """
+    root = load_toml(path)
+    orbit, cam, target = root.table("orbit"), root.table("camera"), root.table("target")
+    noise, sim, filt = root.table("noise"), root.table("simulation"), root.table("filter")
+
+    n = mean_motion(EARTH_RADIUS_M + 1e3 * orbit.number("altitude_km", positive=True), EARTH_MU)
+    width = cam.integer("image_width_px", minimum=1)
+    height = cam.integer("image_height_px", minimum=1)
+    fov = cam.number("field_of_view_deg", positive=True)
+    if fov >= 180:
+        raise cam.error("field_of_view_deg", f"must be below 180, got {fov}")
+    stereo = StereoCamera(
+        PinholeCamera.from_fov(fov, width, height), cam.number("baseline_m", positive=True)
+    )
+    axes = cam.array("axes_in_hill", (3, 3))
+
+    coords = target.array("feature_coordinates", (None, 3))
+    sigma = {
+        "attitude": math.radians(filt.number("sigma_attitude_deg", positive=True)),
+        "omega": math.radians(filt.number("sigma_rate_deg_s", positive=True)),
+        "k": filt.number("sigma_k", positive=True),
+        "position": filt.number("sigma_position_m", positive=True),
+        "velocity": filt.number("sigma_velocity_m_s", positive=True),
+    }
+    fields: dict[str, Any] = {
+        "mean_motion": n,
+        "camera_from_hill": axes,
+        "stereo": stereo,
+        "feature_coordinates": coords,
+        "feature_count": target.integer("feature_count", minimum=3),
+        "target_size": target.number("size_m", positive=True),
+        "inertia": target.array("principal_inertia_kg_m2", (3,)),
+        "attitude": euler321_to_quaternion(
+            np.radians(target.array("initial_attitude_321_deg", (3,)))
+        ),
+        "omega": np.radians(target.array("initial_rate_deg_s", (3,))),
+        "position": target.array("initial_position_m", (3,)),
+        "velocity": target.array("initial_velocity_m_s", (3,)),
+        "angle_noise": noise.number("angle_rad", positive=True),
+        "angular_acceleration_psd": noise.number("angular_acceleration_rad_s2_rthz", minimum=0)
+        ** 2,
+        "acceleration_psd": noise.number("acceleration_m_s2_rthz", minimum=0) ** 2,
+        "duration": sim.number("duration_s", positive=True),
+        "step": sim.number("step_s", positive=True),
+        "window": sim.number("window_s", positive=True),
+        "truth_substeps": sim.integer("truth_substeps", 2, minimum=1),
+        "initial_attitude_error": np.radians(filt.array("initial_attitude_error_deg", (3,))),
+        "initial_k": filt.array("initial_k", (2,)),
+        "sigma": sigma,
+    }
+    for table in (root, orbit, cam, target, noise, sim, filt):
+        table.check_unknown()
+    try:
+        return StereoScenario(**fields)
+    except ValueError as exc:  # cross-field checks (window vs duration, inertia, ...)
+        raise ScenarioError(f"{root.path}: {exc}") from None
+
+
+def write_atomic(path: Path, write: Any) -> None:
+    """Write a file through a temporary sibling and ``os.replace``.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        Destination.
+    write : callable
+        ``write(tmp_path)`` that creates the temporary file.
+    """
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json(path: Path, payload: dict[str, Any]) -> None:
+    """Atomically write ``payload`` as indented JSON."""
+    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``lightcurve stereo``."""
+    parser.add_argument("scenario", type=Path, help="scenario TOML file")
+    parser.add_argument("--runs", type=int, default=200, help="Monte Carlo runs (default 200)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``lightcurve stereo``."""
+    if args.runs < 1:
+        raise ValueError(f"--runs must be at least 1, got {args.runs}")
+    scenario = load_stereo_scenario(args.scenario)
+    args.out.mkdir(parents=True, exist_ok=True)
+    steps = round(scenario.duration / scenario.step)
+    with tqdm(total=steps, desc="stereo", unit="frame", disable=None) as bar:
+        result = run_monte_carlo(
+            scenario, args.runs, seed=args.seed, progress=lambda _: bar.update(1)
+        )
+    summary = {
+        "scenario": str(args.scenario),
+        **result.summary(),
+        "window_s": scenario.window,
+        "duration_s": scenario.duration,
+        "feature_count": scenario.feature_count,
+        "target_size_m": scenario.target_size,
+        "angle_noise_rad": scenario.angle_noise,
+    }
+    write_json(args.out / "summary.json", summary)
+    history = pd.DataFrame(result.history)
+    write_atomic(args.out / "history.csv", lambda tmp: history.to_csv(tmp, index=False))
+    rt = result.rtmse
+    print(
+        f"{args.runs} runs: RTMSE attitude {rt['attitude_deg']:.3g} deg, rate "
+        f"{rt['omega_rad_s']:.3g} rad/s, position {rt['position_m']:.3g} m, velocity "
+        f"{rt['velocity_m_s']:.3g} m/s, k {rt['inertia_k']:.3g}; NEES {result.nees_mean:.2f} "
+        f"(95 % band {result.nees_band[0]:.2f}-{result.nees_band[1]:.2f})"
+    )
+    return 0
