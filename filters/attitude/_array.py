@@ -14,7 +14,10 @@ from typing import Any
 import numpy as np
 from array_api_compat import array_namespace, is_torch_array
 
-__all__ = ["as_arrays", "is_torch_array", "matvec"]
+__all__ = ["as_arrays", "cross", "is_torch_array", "matvec"]
+
+_NUMPY = array_namespace(np.empty(0))
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def as_arrays(*values: Any) -> tuple[ModuleType, tuple[Any, ...]]:
@@ -32,6 +35,8 @@ def as_arrays(*values: Any) -> tuple[ModuleType, tuple[Any, ...]]:
     arrays : tuple
         The inputs as arrays of that namespace, floating point.
     """
+    if all(type(v) is np.ndarray and v.dtype in _FLOATS for v in values):
+        return _NUMPY, values
     tensors = [v for v in values if is_torch_array(v)]
     if tensors:
         import torch
@@ -51,7 +56,7 @@ def as_arrays(*values: Any) -> tuple[ModuleType, tuple[Any, ...]]:
 
 def _as_float_array(value: Any) -> np.ndarray:
     array = np.asarray(value)
-    if array.dtype not in (np.float32, np.float64):
+    if array.dtype not in _FLOATS:
         array = array.astype(np.float64)
     return array
 
@@ -68,4 +73,28 @@ def matvec(matrix: Any, vector: Any) -> Any:
     -------
     (..., m) array
     """
+    if matrix.ndim == 2:
+        # One shared matrix: a single GEMM instead of a batch of tiny products.
+        return vector @ matrix.T
     return (matrix @ vector[..., None])[..., 0]
+
+
+def cross(a: Any, b: Any) -> Any:
+    """Batched cross product ``a × b`` over the last axis, broadcasting leading dimensions.
+
+    Written out by components: an order of magnitude faster than ``numpy.cross`` on small
+    arrays and as fast on large ones, and identical for numpy and torch.
+
+    Parameters
+    ----------
+    a, b : (..., 3) array
+        Arrays of one kind (both numpy or both torch).
+
+    Returns
+    -------
+    (..., 3) array
+    """
+    xp = array_namespace(a, b)
+    a1, a2, a3 = a[..., 0], a[..., 1], a[..., 2]
+    b1, b2, b3 = b[..., 0], b[..., 1], b[..., 2]
+    return xp.stack([a2 * b3 - a3 * b2, a3 * b1 - a1 * b3, a1 * b2 - a2 * b1], axis=-1)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.attitude._array import as_arrays, matvec
+from filters.attitude._array import as_arrays, cross, matvec
 from filters.attitude.inertia import inertia_from_normalized, ratios_from_tanh
 from filters.attitude.kinematics import cross_matrix, omega_matrix, xi_matrix
 
@@ -75,12 +75,10 @@ def euler_rate_jacobian_normalized(omega: Any, l: Any) -> Any:
     xp, (w, l) = as_arrays(omega, l)
     big_l = inertia_from_normalized(l)
     l_inv = xp.linalg.inv(big_l)
-    g = matvec(l_inv, xp.linalg.cross(*xp.broadcast_arrays(w, matvec(big_l, w))))
+    g = matvec(l_inv, cross(w, matvec(big_l, w)))
     basis = xp.asarray(_BASIS, dtype=w.dtype, device=getattr(w, "device", None))
     w_b = w[..., None, :]
-    cols = matvec(basis, g[..., None, :]) - xp.linalg.cross(
-        *xp.broadcast_arrays(w_b, matvec(basis, w_b))
-    )
+    cols = matvec(basis, g[..., None, :]) - cross(w_b, matvec(basis, w_b))
     return xp.matrix_transpose(matvec(l_inv[..., None, :, :], cols))
 
 

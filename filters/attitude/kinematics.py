@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from filters.attitude._array import as_arrays, matvec
+from filters.attitude._array import as_arrays, cross, matvec
 
 __all__ = [
     "cross_matrix",
@@ -116,8 +116,7 @@ def quaternion_rate(q: Any, omega: Any) -> Any:
     """
     xp, (q, w) = as_arrays(q, omega)
     qv, q4 = q[..., :3], q[..., 3:]
-    qv, w = xp.broadcast_arrays(qv, w)
-    vec = 0.5 * (q4 * w - xp.linalg.cross(w, qv))
+    vec = 0.5 * (q4 * w - cross(w, qv))
     scalar = -0.5 * xp.sum(w * qv, axis=-1, keepdims=True)
     return xp.concat([vec, scalar], axis=-1)
 
@@ -141,8 +140,7 @@ def euler_rate(omega: Any, inertia: Any, torque: Any = None) -> Any:
         ``ω̇`` in rad/s².
     """
     xp, (w, j, tau) = as_arrays(omega, inertia, 0.0 if torque is None else torque)
-    w_b, h = xp.broadcast_arrays(w, matvec(j, w))
-    rhs = tau - xp.linalg.cross(w_b, h)
+    rhs = tau - cross(w, matvec(j, w))
     return matvec(xp.linalg.inv(j), rhs)
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.attitude._array import as_arrays
+from filters.attitude._array import as_arrays, cross
 
 __all__ = [
     "attitude_angle",
@@ -46,6 +46,8 @@ __all__ = [
 
 # Below this rotation angle (rad) the small-angle series replace sin(x)/x forms.
 _SMALL_ANGLE = 1e-4
+# Below this cos(pitch) the 3-2-1 angles are treated as gimbal-locked (roll set to zero).
+_GIMBAL_LOCK = 1e-10
 
 
 def quaternion_multiply(p: Any, q: Any) -> Any:
@@ -65,7 +67,7 @@ def quaternion_multiply(p: Any, q: Any) -> Any:
     xp, (p, q) = as_arrays(p, q)
     pv, p4 = p[..., :3], p[..., 3:]
     qv, q4 = q[..., :3], q[..., 3:]
-    vec = p4 * qv + q4 * pv - xp.linalg.cross(*xp.broadcast_arrays(pv, qv))
+    vec = p4 * qv + q4 * pv - cross(pv, qv)
     scalar = p4 * q4 - xp.sum(pv * qv, axis=-1, keepdims=True)
     return xp.concat([vec, scalar], axis=-1)
 
@@ -183,11 +185,10 @@ def rotate(q: Any, v: Any) -> Any:
     """
     xp, (q, v) = as_arrays(q, v)
     qv, q4 = q[..., :3], q[..., 3:]
-    qv, v = xp.broadcast_arrays(qv, v)
     return (
         (q4 * q4 - xp.sum(qv * qv, axis=-1, keepdims=True)) * v
         + 2 * qv * xp.sum(qv * v, axis=-1, keepdims=True)
-        - 2 * q4 * xp.linalg.cross(qv, v)
+        - 2 * q4 * cross(qv, v)
     )
 
 
@@ -295,9 +296,9 @@ def quaternion_to_rotation_vector(q: Any) -> Any:
     angle = 2 * xp.atan2(vnorm, q[..., 3:])
     small = vnorm < _SMALL_ANGLE / 2
     safe = xp.where(small, xp.ones_like(vnorm), vnorm)
-    # θ/|q_v| → 2/q4 · (1 + |q_v|²/(6 q4²)) as |q_v| → 0.
-    q4 = q[..., 3:]
-    scale = xp.where(small, 2 / q4 * (1 + vnorm * vnorm / (6 * q4 * q4)), angle / safe)
+    # θ/|q_v| = 2 atan(|q_v|/q4)/|q_v| → 2/q4 · (1 − |q_v|²/(3 q4²)) as |q_v| → 0.
+    q4 = xp.where(small, q[..., 3:], xp.ones_like(vnorm))
+    scale = xp.where(small, 2 / q4 * (1 - vnorm * vnorm / (3 * q4 * q4)), angle / safe)
     return q[..., :3] * scale
 
 
@@ -418,9 +419,15 @@ def quaternion_to_euler321(q: Any) -> Any:
     """
     xp, (q,) = as_arrays(q)
     a = attitude_matrix(q)
-    psi = xp.atan2(a[..., 0, 1], a[..., 0, 0])
-    theta = -xp.asin(xp.clip(a[..., 0, 2], -1.0, 1.0))
-    phi = xp.atan2(a[..., 1, 2], a[..., 2, 2])
+    sin_theta = xp.clip(-a[..., 0, 2], -1.0, 1.0)
+    # cos θ from the first row is accurate near the lock, where asin(sin θ) is not.
+    cos_theta = xp.sqrt(a[..., 0, 0] ** 2 + a[..., 0, 1] ** 2)
+    theta = xp.atan2(sin_theta, cos_theta)
+    locked = cos_theta < _GIMBAL_LOCK
+    psi = xp.where(
+        locked, xp.atan2(-a[..., 1, 0], a[..., 1, 1]), xp.atan2(a[..., 0, 1], a[..., 0, 0])
+    )
+    phi = xp.where(locked, xp.zeros_like(psi), xp.atan2(a[..., 1, 2], a[..., 2, 2]))
     return xp.stack([psi, theta, phi], axis=-1)
 
 

@@ -1,0 +1,77 @@
+"""Atomic file output: write to a temporary file in the target folder, then rename.
+
+An interrupted run therefore never leaves a half-written result behind: the target either
+has its old content or the complete new one. Every writer in :mod:`lightcurve` goes
+through these functions.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+__all__ = ["atomic_path", "atomic_write_json", "atomic_write_table", "atomic_write_text"]
+
+
+@contextmanager
+def atomic_path(target: str | os.PathLike[str], suffix: str = "") -> Iterator[Path]:
+    """Yield a temporary path beside ``target``; on success rename it onto ``target``.
+
+    Parameters
+    ----------
+    target : path-like
+        Final file path; its parent folder is created if needed.
+    suffix : str
+        Suffix of the temporary file (some writers infer the format from it).
+
+    Yields
+    ------
+    pathlib.Path
+        Where to write. Removed if the block raises.
+    """
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix + ".tmp", dir=target.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    umask = os.umask(0)
+    os.umask(umask)
+    tmp_path.chmod(0o666 & ~umask)  # mkstemp creates 0600; give the file normal permissions
+    try:
+        yield tmp_path
+        with open(tmp_path, "rb") as handle:
+            os.fsync(handle.fileno())
+        os.replace(tmp_path, target)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def atomic_write_text(target: str | os.PathLike[str], text: str) -> None:
+    """Write UTF-8 text atomically."""
+    with atomic_path(target) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def atomic_write_json(target: str | os.PathLike[str], data: Any) -> None:
+    """Write JSON atomically (indented, UTF-8, NaN/inf rejected)."""
+    atomic_write_text(target, json.dumps(data, indent=2, allow_nan=False) + "\n")
+
+
+def atomic_write_table(table: pd.DataFrame, target: str | os.PathLike[str]) -> None:
+    """Write a table atomically as CSV or Parquet, chosen by the target's suffix."""
+    suffix = Path(target).suffix.lower()
+    with atomic_path(target, suffix=suffix) as tmp:
+        if suffix == ".parquet":
+            table.to_parquet(tmp, index=False)
+        elif suffix == ".csv":
+            table.to_csv(tmp, index=False)
+        else:
+            raise ValueError(f"{target}: unknown table format {suffix!r} (use .csv or .parquet)")

@@ -1,0 +1,53 @@
+"""Argument types shared by the command modules (vectors, inertia tensors)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+import numpy as np
+
+
+def float_vector(*sizes: int) -> Callable[[str], np.ndarray]:
+    """Argparse type for comma-separated floats with one of the given lengths.
+
+    Parameters
+    ----------
+    *sizes : int
+        Accepted numbers of components.
+
+    Returns
+    -------
+    callable
+        Converts ``"1,2,3"`` to a float array, or raises :class:`argparse.ArgumentTypeError`.
+    """
+
+    def parse(text: str) -> np.ndarray:
+        try:
+            values = np.array([float(v) for v in text.split(",")])
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected {' or '.join(map(str, sizes))} comma-separated numbers, got {text!r}"
+            ) from None
+        if values.size not in sizes:
+            raise argparse.ArgumentTypeError(
+                f"expected {' or '.join(map(str, sizes))} comma-separated numbers, "
+                f"got {values.size} in {text!r}"
+            )
+        if not np.all(np.isfinite(values)):
+            raise argparse.ArgumentTypeError(f"values must be finite, got {text!r}")
+        return values
+
+    return parse
+
+
+def inertia_tensor(text: str) -> np.ndarray:
+    """Argparse type for ``Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]`` → symmetric 3×3 tensor.
+
+    The tensor is not checked for physical validity here; the attitude core's
+    ``validate_inertia`` does that with a message naming the violated inequality.
+    """
+    values = float_vector(3, 6)(text)
+    jxx, jyy, jzz = values[:3]
+    jxy, jxz, jyz = values[3:] if values.size == 6 else (0.0, 0.0, 0.0)
+    return np.array([[jxx, jxy, jxz], [jxy, jyy, jyz], [jxz, jyz, jzz]])

@@ -1,0 +1,46 @@
+"""The CLI entry point: discovery, version, one-line errors, the propagate demo."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+
+from lightcurve import __version__
+from lightcurve.cli import build_parser, main
+
+
+def test_help_lists_commands_and_version(capsys):
+    parser = build_parser()
+    help_text = parser.format_help()
+    assert "propagate" in help_text
+    out = subprocess.run(
+        [sys.executable, "-m", "lightcurve.cli", "--version"], capture_output=True, text=True
+    )
+    assert out.returncode == 0
+    assert __version__ in out.stdout
+
+
+def test_propagate_demo_conserves_invariants(tmp_path, capsys):
+    out = tmp_path / "state.csv"
+    assert main(["propagate", "--duration", "120", "--step", "30", "--out", str(out)]) == 0
+    table = pd.read_csv(out)
+    assert len(table) == 5
+    np.testing.assert_allclose(table["energy"], table["energy"][0], rtol=1e-10)
+    np.testing.assert_allclose(table["h_norm"], table["h_norm"][0], rtol=1e-10)
+    assert "wx_deg_s" in capsys.readouterr().out
+
+
+def test_user_errors_are_one_line_with_exit_code_2(capsys):
+    assert main(["propagate", "--inertia", "1,1,3"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0
+    assert "triangle inequality" in err
+
+
+def test_bad_vector_argument(capsys):
+    try:
+        main(["propagate", "--omega0", "1,2"])
+    except SystemExit as exc:
+        assert exc.code == 2
+    assert "expected 3 comma-separated numbers" in capsys.readouterr().err
