@@ -84,7 +84,7 @@ def ashikhmin_shirley_from_cosines(
     q = 1.0 - vh
     q2 = q * q
     fresnel = rs + (1.0 - rs) * (q2 * q2 * q)
-    specular_weight = xp.sqrt((nu + 1.0) * (nv + 1.0)) * _INV_8PI * fresnel / vh
+    specular_weight = ((nu + 1.0) * (nv + 1.0)) ** 0.5 * _INV_8PI * fresnel / vh
     specular = specular_weight * nh**exponent / xp.clip(high, COSINE_FLOOR, None)
     diffuse = (_DIFFUSE * rd * (1.0 - rs)) * (
         _one_minus_fifth_power(nl) * _one_minus_fifth_power(nview)
