@@ -10,10 +10,7 @@ The scenario file format is described in ``docs/stereo.md``.
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +23,7 @@ from filters.camera import PinholeCamera
 from filters.hill import EARTH_MU, mean_motion
 from filters.stereo import StereoCamera
 from filters.stereo_montecarlo import StereoScenario, run_monte_carlo
+from lightcurve.atomic import atomic_write_json, atomic_write_table
 from lightcurve.commands._scenario_toml import ScenarioError, load_toml
 
 NAME = "stereo"
@@ -109,31 +107,6 @@ def load_stereo_scenario(path: str | Path) -> StereoScenario:
         raise ScenarioError(f"{root.path}: {exc}") from None
 
 
-def write_atomic(path: Path, write: Any) -> None:
-    """Write a file through a temporary sibling and ``os.replace``.
-
-    Parameters
-    ----------
-    path : pathlib.Path
-        Destination.
-    write : callable
-        ``write(tmp_path)`` that creates the temporary file.
-    """
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_json(path: Path, payload: dict[str, Any]) -> None:
-    """Atomically write ``payload`` as indented JSON."""
-    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve stereo``."""
     parser.add_argument("scenario", type=Path, help="scenario TOML file")
@@ -162,9 +135,8 @@ def run(args: argparse.Namespace) -> int:
         "target_size_m": scenario.target_size,
         "angle_noise_rad": scenario.angle_noise,
     }
-    write_json(args.out / "summary.json", summary)
-    history = pd.DataFrame(result.history)
-    write_atomic(args.out / "history.csv", lambda tmp: history.to_csv(tmp, index=False))
+    atomic_write_json(args.out / "summary.json", summary)
+    atomic_write_table(pd.DataFrame(result.history), args.out / "history.csv")
     rt = result.rtmse
     print(
         f"{args.runs} runs: RTMSE attitude {rt['attitude_deg']:.3g} deg, rate "

@@ -7,16 +7,11 @@ import math
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from filters.attitude import (
     euler321_to_quaternion,
-    euler_rate_jacobian_tanh,
     euler_rate_principal,
-    inertia_from_tanh,
-    inertia_ratios,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
@@ -24,8 +19,6 @@ from filters.attitude import (
     rk4_step,
     rotate,
     rotation_vector_to_quaternion,
-    tanh_from_inertia,
-    validate_inertia,
 )
 from filters.camera import PinholeCamera
 from filters.hill import mean_motion
@@ -59,7 +52,6 @@ COORDS = np.array(
         [-0.5, 0.0, 0.0],
     ]
 )
-tanh_params = st.lists(st.floats(min_value=-3.0, max_value=3.0), min_size=2, max_size=2)
 
 
 def scenario(**changes) -> StereoScenario:
@@ -94,32 +86,6 @@ def scenario(**changes) -> StereoScenario:
         },
     )
     return base.with_(**changes)
-
-
-# --------------------------------------------------------------------------- tanh inertia form
-@settings(max_examples=60, deadline=None)
-@given(tanh_params)
-def test_tanh_form_round_trips_and_is_always_physical(k):
-    k = np.array(k)
-    j = inertia_from_tanh(k)
-    validate_inertia(j)  # every k is a physical inertia (seed 004 eqs. 14-17)
-    np.testing.assert_allclose(tanh_from_inertia(j), k, atol=1e-9)
-    p = inertia_ratios(j)
-    np.testing.assert_allclose(p, ratios_from_tanh(k), atol=1e-12)
-    assert p[0] + p[1] + p[2] + p[0] * p[1] * p[2] == pytest.approx(0.0, abs=1e-12)  # eq. 12
-
-
-@settings(max_examples=30, deadline=None)
-@given(tanh_params, st.lists(st.floats(min_value=-0.2, max_value=0.2), min_size=3, max_size=3))
-def test_tanh_rate_jacobian_matches_autograd(k, omega):
-    k_t = torch.tensor(k, dtype=torch.float64, requires_grad=True)
-    w_t = torch.tensor(omega, dtype=torch.float64)
-    auto = torch.autograd.functional.jacobian(
-        lambda kk: euler_rate_principal(w_t, ratios_from_tanh(kk)), k_t
-    )
-    np.testing.assert_allclose(
-        euler_rate_jacobian_tanh(np.array(omega), np.array(k)), auto, atol=1e-12
-    )
 
 
 # --------------------------------------------------------------------------- stereo camera
