@@ -1,0 +1,118 @@
+"""Observation geometry: directions, ranges, phase angle and the phase-angle bisector.
+
+Inputs are object → Sun and object → observer vectors in the inertial frame (metres). The
+body-frame directions used by the renderer are ``A(q) û`` (attitude core). The Sun's flux
+at the object is the flux at 1 AU scaled by ``(1 AU / r_sun)²``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from filters.attitude import rotate
+from filters.attitude._array import as_arrays, cross
+
+__all__ = [
+    "AU_M",
+    "body_directions",
+    "phase_angle",
+    "phase_angle_bisector",
+    "solar_flux_scale",
+    "unit_and_range",
+]
+
+AU_M = 149_597_870_700.0
+
+
+def unit_and_range(vectors: Any) -> tuple[Any, Any]:
+    """Unit vectors and lengths.
+
+    Parameters
+    ----------
+    vectors : (..., 3) array
+        Non-zero vectors (m).
+
+    Returns
+    -------
+    unit : (..., 3) array
+    length : (...) array
+        In the unit of the input.
+    """
+    xp, (v,) = as_arrays(vectors)
+    length = xp.linalg.vector_norm(v, axis=-1)
+    return v / length[..., None], length
+
+
+def phase_angle(sun: Any, observer: Any) -> Any:
+    """Sun–object–observer angle α (rad) from object → Sun and object → observer vectors.
+
+    Computed as ``atan2(|s × o|, s · o)``, accurate at every angle.
+
+    Parameters
+    ----------
+    sun, observer : (..., 3) array
+
+    Returns
+    -------
+    (...) array
+        In ``[0, π]``.
+    """
+    xp, (s, o) = as_arrays(sun, observer)
+    s, _ = unit_and_range(s)
+    o, _ = unit_and_range(o)
+    return xp.atan2(xp.linalg.vector_norm(cross(s, o), axis=-1), xp.sum(s * o, axis=-1))
+
+
+def phase_angle_bisector(sun: Any, observer: Any) -> Any:
+    """Unit phase-angle bisector ``h = (ŝ + ô)/|ŝ + ô|`` (seed 002 sec. 2.2).
+
+    A flat facet produces a specular glint when its normal is along ``h``.
+
+    Parameters
+    ----------
+    sun, observer : (..., 3) array
+
+    Returns
+    -------
+    (..., 3) array
+        Undefined (NaN) at phase angle π.
+    """
+    s, _ = unit_and_range(sun)
+    o, _ = unit_and_range(observer)
+    h, _ = unit_and_range(s + o)
+    return h
+
+
+def body_directions(q: Any, sun: Any, observer: Any) -> tuple[Any, Any]:
+    """Unit Sun and observer directions in the body frame, ``L = A(q) ŝ``, ``V = A(q) ô``.
+
+    Parameters
+    ----------
+    q : (..., 4) array
+        Attitude quaternions (inertial → body).
+    sun, observer : (..., 3) array
+        Object → Sun and object → observer vectors, inertial frame.
+
+    Returns
+    -------
+    light, view : (..., 3) array
+    """
+    s, _ = unit_and_range(sun)
+    o, _ = unit_and_range(observer)
+    return rotate(q, s), rotate(q, o)
+
+
+def solar_flux_scale(sun_range: Any) -> Any:
+    """Solar flux at the object relative to 1 AU, ``(1 AU / r_sun)²``.
+
+    Parameters
+    ----------
+    sun_range : array
+        Object–Sun distance (m).
+
+    Returns
+    -------
+    array
+    """
+    _, (r,) = as_arrays(sun_range)
+    return (AU_M / r) ** 2
