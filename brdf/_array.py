@@ -8,12 +8,13 @@ and without promoting float32 inputs to float64.
 
 from __future__ import annotations
 
+import sys
 from numbers import Real
 from types import ModuleType
 from typing import Any
 
+import array_api_compat.numpy as xp_numpy
 import numpy as np
-from array_api_compat import array_namespace, is_torch_array
 
 __all__ = ["prepare"]
 
@@ -43,20 +44,24 @@ def prepare(
     arrays, params : tuple
         The converted inputs, in order.
     """
-    tensors = [v for v in (*arrays, *params) if is_torch_array(v)]
+    # A plain isinstance test (no cached namespace lookup) keeps the kernels traceable by
+    # torch.compile; torch is only consulted when the caller has imported it.
+    torch = sys.modules.get("torch")
+    tensors = [v for v in (*arrays, *params) if torch is not None and isinstance(v, torch.Tensor)]
     if tensors:
-        import torch
+        import array_api_compat.torch as xp
 
         floating = [t for t in tensors if t.is_floating_point()]
         dtype = floating[0].dtype if floating else torch.float64
         device = (floating or tensors)[0].device
 
         def convert(value: Any) -> Any:
-            if is_torch_array(value):
+            if isinstance(value, torch.Tensor):
                 return value if value.is_floating_point() else value.to(dtype)
             return torch.as_tensor(np.asarray(value), dtype=dtype, device=device)
 
     else:
+        xp = xp_numpy
 
         def convert(value: Any) -> Any:
             array = np.asarray(value)
@@ -68,7 +73,6 @@ def prepare(
     converted_params = tuple(
         None if v is None else float(v) if _is_real_scalar(v) else convert(v) for v in params
     )
-    xp = array_namespace(*tensors) if tensors else array_namespace(np.empty(0))
     return xp, converted_arrays, converted_params
 
 

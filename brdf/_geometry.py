@@ -76,19 +76,18 @@ def tangent_cosines(
     return _dot(xp, half, u), _dot(xp, half, v)
 
 
-def visibility(xp: ModuleType, nl: Any, nv: Any) -> tuple[Any, Any, Any]:
-    """Visibility mask and ordered cosines.
+def visibility(xp: ModuleType, nl: Any, nv: Any) -> tuple[Any, Any]:
+    """Visibility mask and the smaller cosine.
 
     Returns
     -------
     visible : array
         1.0 where ``nl > 0`` and ``nv > 0``, else 0.0, in the dtype of the cosines.
-    low, high : arrays
-        ``min(nl, nv)`` and ``max(nl, nv)``.
+    low : array
+        ``min(nl, nv)``.
     """
     low = xp.minimum(nl, nv)
-    high = xp.maximum(nl, nv)
-    return xp.astype(low > 0, low.dtype), low, high
+    return xp.astype(low > 0, low.dtype), low
 
 
 def half_vector(xp: ModuleType, nl: Any, nv: Any, lv: Any) -> tuple[Any, Any]:

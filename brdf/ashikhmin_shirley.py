@@ -73,7 +73,7 @@ def ashikhmin_shirley_from_cosines(
     xp, (nl, nview, lv, hu, hv), (rd, rs, nu, nv) = prepare(
         (nl, nview, lv, hu, hv), (rd, rs, nu, nv)
     )
-    visible, _, high = visibility(xp, nl, nview)
+    visible, _ = visibility(xp, nl, nview)
     vh, nh = half_vector(xp, nl, nview, lv)
     if hu is None or hv is None:
         exponent = nu
@@ -85,7 +85,7 @@ def ashikhmin_shirley_from_cosines(
     q2 = q * q
     fresnel = rs + (1.0 - rs) * (q2 * q2 * q)
     specular_weight = ((nu + 1.0) * (nv + 1.0)) ** 0.5 * _INV_8PI * fresnel / vh
-    specular = specular_weight * nh**exponent / xp.clip(high, COSINE_FLOOR, None)
+    specular = specular_weight * nh**exponent / xp.clip(xp.maximum(nl, nview), COSINE_FLOOR, None)
     diffuse = (_DIFFUSE * rd * (1.0 - rs)) * (
         _one_minus_fifth_power(nl) * _one_minus_fifth_power(nview)
     )

@@ -48,7 +48,7 @@ def cook_torrance_from_cosines(
         ρ in sr⁻¹, zero where ``nl ≤ 0`` or ``nv ≤ 0``.
     """
     xp, (nl, nv, lv), (rd, rs, m, f0) = prepare((nl, nv, lv), (rd, rs, m, f0))
-    visible, low, high = visibility(xp, nl, nv)
+    visible, low = visibility(xp, nl, nv)
     vh, nh = half_vector(xp, nl, nv, lv)
     inv_m2 = 1.0 / (m * m)
     inv_nh2 = 1.0 / (nh * nh)
@@ -62,7 +62,7 @@ def cook_torrance_from_cosines(
     q2 = q * q
     fresnel = f0 + (1.0 - f0) * (q2 * q2 * q)
     specular_weight = (rs * 0.25 * _INV_PI) * inv_m2 * fresnel
-    specular = distribution * masking / (low * xp.clip(high, COSINE_FLOOR, None))
+    specular = distribution * masking / (low * xp.clip(xp.maximum(nl, nv), COSINE_FLOOR, None))
     return (rd * _INV_PI + specular_weight * specular) * visible
 
 

@@ -35,7 +35,7 @@ def lambert_from_cosines(nl: Any, nv: Any, lv: Any, /, rd: Any) -> Any:
         ρ in sr⁻¹, zero where ``nl ≤ 0`` or ``nv ≤ 0``.
     """
     xp, (nl, nv), (rd,) = prepare((nl, nv), (rd,))
-    visible, _, _ = visibility(xp, nl, nv)
+    visible, _ = visibility(xp, nl, nv)
     return (rd * _INV_PI) * visible
 
 

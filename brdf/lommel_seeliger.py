@@ -79,7 +79,7 @@ def lommel_seeliger_from_cosines(
         ρ in sr⁻¹, zero where ``nl ≤ 0`` or ``nv ≤ 0``.
     """
     xp, (nl, nv, lv), (w, c, a, d, k) = prepare((nl, nv, lv), (w, c, a, d, k))
-    visible, _, _ = visibility(xp, nl, nv)
+    visible, _ = visibility(xp, nl, nv)
     scale = (w * _INV_4PI) * phase_function(lv, a, d, k)
     return scale * (1.0 / xp.clip(nl + nv, COSINE_FLOOR, None) + c) * visible
 

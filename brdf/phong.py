@@ -40,7 +40,7 @@ def phong_from_cosines(nl: Any, nv: Any, lv: Any, /, rd: Any, rs: Any, n: Any) -
         ρ in sr⁻¹, zero where ``nl ≤ 0`` or ``nv ≤ 0``.
     """
     xp, (nl, nv, lv), (rd, rs, n) = prepare((nl, nv, lv), (rd, rs, n))
-    visible, _, _ = visibility(xp, nl, nv)
+    visible, _ = visibility(xp, nl, nv)
     mirror = xp.clip(2.0 * nl * nv - lv, 0.0, None)
     lobe = mirror**n
     return (rd * _INV_PI + (rs * (n + 2.0) * _INV_TWO_PI) * lobe) * visible
