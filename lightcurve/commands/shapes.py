@@ -1,0 +1,240 @@
+"""Manage the shape library: list, show, add, remove, validate and render shapes.
+
+The library is the folder given by --library, else $LIGHTCURVE_LIBRARY, else the built-in
+library shipped with the project (read-only). See docs/shapes.md for the manifest format.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+import shapes
+from shapes.library import LibraryReadOnlyError
+
+NAME = "shapes"
+HELP = "manage the shape library (list, show, add, remove, validate, render)"
+ORDER = 30
+
+
+def _floats(text: str, what: str, counts: Sequence[int]) -> list[float]:
+    """Comma-separated finite numbers, ``len`` in ``counts``; ShapeError naming the option."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        raise shapes.ShapeError(
+            f"{what}: expected {' or '.join(map(str, counts))} comma-separated finite numbers, "
+            f"got {text!r}"
+        )
+    return values
+
+
+def _params(items: Sequence[str]) -> dict[str, float]:
+    """``key=value`` strings → BRDF parameters."""
+    params = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or not key.strip():
+                raise ValueError
+            params[key.strip()] = float(value)
+        except ValueError:
+            raise shapes.ShapeError(
+                f"--param: expected key=value with a number, got {item!r}"
+            ) from None
+    return params
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    library_help = "library folder (default: $LIGHTCURVE_LIBRARY, else the built-in library)"
+    parser.add_argument("--library", metavar="DIR", default=None, help=library_help)
+    sub = parser.add_subparsers(dest="shapes_command", metavar="ACTION", required=True)
+
+    def action(name: str, help_text: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.add_argument("--library", metavar="DIR", default=argparse.SUPPRESS, help=library_help)
+        return p
+
+    action("list", "list the shapes of the library")
+    p = action("show", "print facets, groups, materials, area, volume and inertia of a shape")
+    p.add_argument("name")
+    p = action("add", "add a mesh file (OBJ/PLY/STL/GLB/GLTF/DAMIT) as a new shape")
+    p.add_argument("name", help="shape name: letters, digits, '_', '.', '-'")
+    p.add_argument("mesh", help="mesh file")
+    p.add_argument("--brdf", metavar="KIND", help="one material for every group: BRDF name")
+    p.add_argument(
+        "--param",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="BRDF parameter (repeatable), e.g. --param rd=0.4 --param rs=0.3",
+    )
+    p.add_argument("--units", choices=("m", "km"), default="m", help="unit of the mesh file")
+    p.add_argument(
+        "--inertia",
+        metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
+        help="given inertia about the centre of mass, kg m² (default: computed)",
+    )
+    p.add_argument("--mass", type=float, help="mass, kg (scales a computed inertia)")
+    p.add_argument("--source", help="provenance: where the mesh comes from")
+    p.add_argument("--license", help="provenance: licence of the mesh")
+    p.add_argument("--force", action="store_true", help="replace an existing shape")
+    p = action("remove", "remove a shape")
+    p.add_argument("name")
+    p = action("validate", "check every shape (or one): checksum, mesh, materials, tables")
+    p.add_argument("name", nargs="?")
+    p = action("render", "write a PNG preview coloured by material")
+    p.add_argument("name")
+    p.add_argument("--out", required=True, metavar="FILE.png", help="output PNG")
+    p.add_argument(
+        "--view",
+        default="1,-1,0.6",
+        metavar="x,y,z",
+        help="direction toward the viewer, body frame (default 1,-1,0.6)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    library = shapes.get_library(args.library)
+    command = args.shapes_command
+    try:
+        return _ACTIONS[command](library, args)
+    except LibraryReadOnlyError:
+        raise shapes.ShapeError(
+            f"the built-in shape library ({library.path}) is read-only; pass --library DIR "
+            f"(or set $LIGHTCURVE_LIBRARY) to {command} shapes in a library of your own"
+        ) from None
+
+
+def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    names = library.names()
+    print(f"# {library.path}{' (read-only)' if library.read_only else ''}: {len(names)} shapes")
+    rows = [("name", "facets", "unit", "groups", "self-shadowing", "source")]
+    for name in names:
+        entry = library.info(name)
+        provenance = entry.get("provenance", {})
+        rows.append(
+            (
+                name,
+                str(entry.get("facets", "?")),
+                str(entry.get("unit", "?")),
+                ",".join(entry.get("groups", [])),
+                "table" if entry.get("visibility") else "none (convex)",
+                str(provenance.get("source", "")),
+            )
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for row in rows:
+        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
+    return 0
+
+
+def _matrix(matrix: np.ndarray) -> str:
+    return "\n".join("    " + "  ".join(f"{v:14.6g}" for v in row) for row in matrix)
+
+
+def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    entry = library.info(args.name)
+    model = library.load(args.name, build_visibility=False)
+    compiled = model.compiled()
+    print(f"shape {args.name}  ({library.path / entry['mesh']}, source unit {model.unit})")
+    print(f"  facets: {len(model.faces)}  vertices: {len(model.vertices)}  ", end="")
+    print(f"effective facets (merged): {len(compiled)}")
+    print(f"  watertight: {model.is_watertight}  convex: {model.is_convex}  ", end="")
+    table = model.visibility
+    print(f"visibility table: {f'{len(table.grid)} directions' if table else 'none'}")
+    print(f"  area: {model.area:.6g} m²  ", end="")
+    print(f"volume: {f'{model.volume:.6g} m³' if model.volume is not None else 'n/a (open mesh)'}")
+    print("  groups:")
+    for k, group in enumerate(model.group_names):
+        members = model.group_index == k
+        material = model.materials[group]
+        params = ", ".join(f"{p}={v:g}" for p, v in material.params.items())
+        label = f" '{material.name}'" if material.name else ""
+        print(
+            f"    {group}: {int(members.sum())} facets, {model.areas[members].sum():.6g} m², "
+            f"{material.brdf}({params}){label}"
+        )
+    mass = f"{model.mass:.6g} kg" if not math.isnan(model.mass) else "not given"
+    print(f"  inertia ({model.inertia_source}, mass {mass}), kg m², about the centre of mass")
+    print(f"  centre of mass: {np.array2string(model.center_of_mass, precision=6)} m")
+    print(_matrix(model.inertia))
+    print(f"  principal moments: {np.array2string(model.principal_moments, precision=6)} kg m²")
+    print("  principal axes (columns):")
+    print(_matrix(model.principal_axes))
+    for key, value in entry.get("provenance", {}).items():
+        print(f"  {key}: {value}")
+    return 0
+
+
+def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    if args.param and not args.brdf:
+        raise shapes.ShapeError("--param needs --brdf KIND")
+    material = shapes.Material(args.brdf, _params(args.param)) if args.brdf else None
+    inertia = "auto" if args.inertia is None else _floats(args.inertia, "--inertia", (3, 6))
+    provenance = {k: v for k, v in (("source", args.source), ("license", args.license)) if v}
+    model = library.add(
+        args.name,
+        args.mesh,
+        unit=args.units,
+        materials=material,
+        inertia=inertia,
+        mass=args.mass,
+        provenance=provenance,
+        force=args.force,
+    )
+    print(
+        f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
+        f"groups {', '.join(model.group_names)}, inertia {model.inertia_source}"
+        + (", visibility table built" if model.visibility is not None else "")
+    )
+    return 0
+
+
+def _remove(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    library.remove(args.name)
+    print(f"removed {args.name}")
+    return 0
+
+
+def _validate(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    names = [args.name] if args.name else library.names()
+    failed = 0
+    for name in names:
+        try:
+            model = library.validate(name)
+        except (ValueError, OSError) as exc:
+            failed += 1
+            print(f"FAILED {name}: {exc}", file=sys.stderr)
+            continue
+        detail = "convex" if model.is_convex else "visibility table ok"
+        print(f"ok {name}: {len(model.faces)} facets, {len(model.compiled())} effective, {detail}")
+    print(f"{len(names) - failed} of {len(names)} shapes valid")
+    return 1 if failed else 0
+
+
+def _render(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    from shapes.preview import render_preview
+
+    view = _floats(args.view, "--view", (3,))
+    model = library.load(args.name, build_visibility=False)
+    render_preview(model, args.out, view)
+    print(f"wrote {args.out}")
+    return 0
+
+
+_ACTIONS: dict[str, Any] = {
+    "list": _list,
+    "show": _show,
+    "add": _add,
+    "remove": _remove,
+    "validate": _validate,
+    "render": _render,
+}

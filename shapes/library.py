@@ -1,0 +1,485 @@
+"""The shape library: a folder of mesh files with a JSON manifest.
+
+Layout::
+
+    <library>/manifest.json              the manifest (below)
+    <library>/<name>.obj                 one mesh per shape (any format trimesh reads)
+    <library>/<name>.visibility.npz      visibility table of non-convex shapes
+    <library>/.manifest.lock             file lock of writers
+
+``manifest.json``::
+
+    {"format": "space-lightcurves shape library", "version": 1,
+     "shapes": {"<name>": {
+        "mesh": "<name>.obj", "unit": "m" | "km", "sha256": "<hex of the mesh file>",
+        "facets": int, "groups": [str, ...],
+        "materials": {"<group>": {"brdf": str, "params": {str: float},
+                                  "name"?: str, "reference_direction"?: [x, y, z]}},
+        "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
+                    "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
+        "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
+        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...}}}}
+
+For ``"given"`` inertia the tensor and centre of mass are used as stored; for ``"solid"`` and
+``"shell"`` they are recomputed from the mesh (uniform density, scaled to ``mass`` when
+present) and stored for reference. Writers hold a :mod:`filelock` lock, write files to
+temporary names and rename them into place, and roll back on failure, so a failed ``add``
+or ``remove`` leaves the library as it was.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import re
+import shutil
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from filelock import FileLock
+
+from shapes.errors import ShapeError
+from shapes.files import atomic_write, file_sha256, temp_path
+from shapes.io import load as load_mesh
+from shapes.io import write_obj
+from shapes.material import Material
+from shapes.model import FacetModel
+from shapes.validation import validate
+from shapes.visibility import (
+    DEFAULT_RESOLUTION,
+    DEFAULT_SAMPLES,
+    VisibilityTable,
+    build_visibility_table,
+)
+
+__all__ = [
+    "MANIFEST",
+    "LibraryReadOnlyError",
+    "ShapeLibrary",
+    "builtin_library_path",
+    "check_name",
+    "get_library",
+]
+
+MANIFEST = "manifest.json"
+FORMAT = "space-lightcurves shape library"
+VERSION = 1
+_NAME = re.compile(r"[A-Za-z0-9_.-]+")
+
+
+class LibraryReadOnlyError(ShapeError, PermissionError):
+    """A write (add/remove) was attempted on a read-only library."""
+
+
+def check_name(name: str) -> str:
+    """Return ``name`` if it is a valid shape name (``[A-Za-z0-9_.-]+``, not ``.``/``..``)."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name) or name in (".", ".."):
+        raise ShapeError(
+            f"invalid shape name {name!r}: use letters, digits, '_', '.', '-' "
+            "(no path separators, not '.' or '..')"
+        )
+    return name
+
+
+def builtin_library_path() -> Path:
+    """``<repository>/data/shapes``: the built-in library shipped with the project."""
+    return Path(__file__).resolve().parent.parent / "data" / "shapes"
+
+
+def get_library(path: str | os.PathLike[str] | None = None) -> ShapeLibrary:
+    """The library at ``path``, else ``$LIGHTCURVE_LIBRARY``, else the built-in one.
+
+    The built-in library is opened read-only.
+    """
+    if path is None:
+        path = os.environ.get("LIGHTCURVE_LIBRARY") or None
+    if path is None:
+        return ShapeLibrary(builtin_library_path(), read_only=True)
+    path = Path(path)
+    builtin = path.exists() and path.resolve() == builtin_library_path().resolve()
+    return ShapeLibrary(path, read_only=builtin)
+
+
+class ShapeLibrary:
+    """A folder of named shapes with a JSON manifest (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The folder (created by the first :meth:`add`).
+    read_only : bool
+        Refuse :meth:`add` and :meth:`remove` (the built-in library).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], read_only: bool = False) -> None:
+        self.path = Path(path)
+        self.read_only = read_only
+
+    def __repr__(self) -> str:
+        mode = ", read-only" if self.read_only else ""
+        return f"ShapeLibrary({str(self.path)!r}{mode})"
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def manifest_path(self) -> Path:
+        return self.path / MANIFEST
+
+    def _read_manifest(self) -> dict[str, Any]:
+        if not self.manifest_path.is_file():
+            if self.path.exists() and not self.path.is_dir():
+                raise ShapeError(f"{self.path}: not a folder")
+            return {"format": FORMAT, "version": VERSION, "shapes": {}}
+        try:
+            data = json.loads(self.manifest_path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ShapeError(f"{self.manifest_path}: unreadable manifest ({exc})") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise ShapeError(f"{self.manifest_path}: not a shape-library manifest")
+        if data.get("version") != VERSION:
+            raise ShapeError(
+                f"{self.manifest_path}: manifest version {data.get('version')!r} is not "
+                f"supported (expected {VERSION})"
+            )
+        if not isinstance(data.get("shapes"), dict):
+            raise ShapeError(f"{self.manifest_path}: field 'shapes' must be an object")
+        return data
+
+    def names(self) -> list[str]:
+        """Sorted shape names."""
+        return sorted(self._read_manifest()["shapes"])
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self._read_manifest()["shapes"]
+
+    def info(self, name: str) -> dict[str, Any]:
+        """The manifest entry of a shape (a copy)."""
+        shapes = self._read_manifest()["shapes"]
+        if name not in shapes:
+            known = ", ".join(sorted(shapes)) or "none"
+            raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
+        return json.loads(json.dumps(shapes[name]))
+
+    def load(self, name: str, *, build_visibility: bool = True) -> FacetModel:
+        """Load a shape with its materials, inertia and visibility table.
+
+        Parameters
+        ----------
+        name : str
+        build_visibility : bool
+            For a non-convex shape without a stored table, build one (and store it when the
+            library is writable).
+
+        Raises
+        ------
+        ShapeError
+            Unknown name, mesh file missing or changed since it was added (checksum), bad
+            manifest fields, a stored table that does not fit the mesh.
+        """
+        entry = self.info(check_name(name))
+        where = f"{self.manifest_path}: shape {name!r}"
+        mesh_path = self.path / self._field(entry, "mesh", str, where)
+        if not mesh_path.is_file():
+            raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
+        if file_sha256(mesh_path) != entry.get("sha256"):
+            raise ShapeError(
+                f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)"
+            )
+        materials = {
+            group: Material.from_dict(spec, f"{where}, material of group {group!r}")
+            for group, spec in self._field(entry, "materials", dict, where).items()
+        }
+        inertia_spec = self._field(entry, "inertia", dict, where)
+        source = inertia_spec.get("source")
+        if source not in ("solid", "shell", "given"):
+            raise ShapeError(f"{where}: inertia source must be solid, shell or given")
+        model = load_mesh(
+            mesh_path,
+            unit=self._field(entry, "unit", str, where),
+            name=name,
+            materials=materials,
+            inertia=np.asarray(inertia_spec.get("tensor"), float) if source == "given" else source,
+            mass=inertia_spec.get("mass"),
+            center_of_mass=inertia_spec.get("center_of_mass") if source == "given" else None,
+            provenance=entry.get("provenance", {}),
+        )
+        table_name = entry.get("visibility")
+        if table_name:
+            table_path = self.path / table_name
+            if not table_path.is_file() or file_sha256(table_path) != entry.get(
+                "visibility_sha256"
+            ):
+                raise ShapeError(f"{where}: visibility table {table_name} missing or changed")
+            try:
+                return model.with_visibility(VisibilityTable.load(table_path))
+            except ShapeError as exc:
+                raise ShapeError(f"{where}: {exc}") from None
+        if model.is_convex or not build_visibility:
+            return model
+        table = build_visibility_table(model)
+        if not self.read_only:
+            self._store_table(name, entry["sha256"], table)
+        return model.with_visibility(table)
+
+    @staticmethod
+    def _field(entry: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
+        value = entry.get(key)
+        if not isinstance(value, kind):
+            raise ShapeError(f"{where}: field {key!r} must be a {kind.__name__}, got {value!r}")
+        return value
+
+    def validate(self, name: str) -> FacetModel:
+        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
+        model = self.load(name, build_visibility=False)
+        try:
+            validate(model)
+        except ShapeError as exc:
+            raise ShapeError(f"{self.path}: shape {name!r}: {exc}") from None
+        if not model.is_convex and model.visibility is None:
+            raise ShapeError(
+                f"{self.path}: shape {name!r} is not convex but has no visibility table"
+            )
+        return model
+
+    # ------------------------------------------------------------------ writing
+    def _check_writable(self) -> None:
+        if self.read_only:
+            raise LibraryReadOnlyError(f"shape library {self.path} is read-only")
+
+    @contextmanager
+    def _locked(self) -> Iterator[dict[str, Any]]:
+        """Hold the writer lock and yield the current manifest."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        with FileLock(str(self.path / ".manifest.lock"), timeout=60):
+            yield self._read_manifest()
+
+    def _write_manifest(self, manifest: dict[str, Any]) -> None:
+        manifest["shapes"] = dict(sorted(manifest["shapes"].items()))
+        with atomic_write(self.manifest_path) as handle:
+            handle.write(json.dumps(manifest, indent=2) + "\n")
+
+    def add(
+        self,
+        name: str,
+        mesh: str | os.PathLike[str],
+        *,
+        unit: str = "m",
+        materials: Material | Mapping[str, Material] | None = None,
+        inertia: Any = "auto",
+        mass: float | None = None,
+        provenance: Mapping[str, Any] | None = None,
+        force: bool = False,
+        keep_file: bool = False,
+        resolution: int = DEFAULT_RESOLUTION,
+        samples: int = DEFAULT_SAMPLES,
+    ) -> FacetModel:
+        """Add a shape from a mesh file.
+
+        Parameters
+        ----------
+        name : str
+            ``[A-Za-z0-9_.-]+``.
+        mesh : path-like
+            Any file :func:`shapes.load` reads.
+        unit, materials, inertia, mass :
+            As :func:`shapes.load`.
+        provenance : mapping, optional
+            ``source``, ``license`` and any other fields; ``added`` defaults to today.
+        force : bool
+            Replace an existing shape of that name.
+        keep_file : bool
+            Copy the mesh file verbatim instead of writing it as a grouped OBJ (only for
+            self-contained files: no MTL or texture side files).
+        resolution, samples :
+            Visibility-table parameters for non-convex shapes.
+
+        Returns
+        -------
+        FacetModel
+            The shape as :meth:`load` will return it.
+        """
+        self._check_writable()
+        check_name(name)
+        mesh = Path(mesh)
+        self._check_free(name, force)
+        model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
+        record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
+        return self._commit(
+            name, model, record, force, mesh if keep_file else None, resolution, samples
+        )
+
+    def add_model(
+        self,
+        name: str,
+        model: FacetModel,
+        *,
+        provenance: Mapping[str, Any] | None = None,
+        force: bool = False,
+        resolution: int = DEFAULT_RESOLUTION,
+        samples: int = DEFAULT_SAMPLES,
+    ) -> FacetModel:
+        """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ."""
+        self._check_writable()
+        check_name(name)
+        self._check_free(name, force)
+        validate(model)
+        record = {**model.provenance, **dict(provenance or {})}
+        return self._commit(name, model, record, force, None, resolution, samples)
+
+    def _check_free(self, name: str, force: bool) -> None:
+        if not force and name in self._read_manifest()["shapes"]:
+            raise ShapeError(
+                f"shape {name!r} already exists in library {self.path}; use force to replace it"
+            )
+
+    def _commit(
+        self,
+        name: str,
+        model: FacetModel,
+        provenance: dict[str, Any],
+        force: bool,
+        verbatim: Path | None,
+        resolution: int,
+        samples: int,
+    ) -> FacetModel:
+        """Write mesh (+ table) under temporary names, then swap them in under the lock."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        suffix = verbatim.suffix.lower() if verbatim is not None else ".obj"
+        final = {"mesh": self.path / f"{name}{suffix}"}
+        staged: dict[str, Path] = {}
+        try:
+            staged["mesh"] = temp_path(self.path, f".{name}.", suffix)
+            if verbatim is not None:
+                shutil.copyfile(verbatim, staged["mesh"])
+            else:
+                write_obj(model, staged["mesh"])
+            inertia_source = model.inertia_source
+            stored = load_mesh(
+                staged["mesh"],
+                unit=model.unit,
+                name=name,
+                materials=model.materials,
+                inertia=model.inertia if inertia_source == "given" else inertia_source,
+                mass=None if np.isnan(model.mass) else model.mass,
+                center_of_mass=model.center_of_mass if inertia_source == "given" else None,
+                provenance=provenance,
+            )
+            if not stored.is_convex:
+                table = build_visibility_table(stored, resolution=resolution, samples=samples)
+                final["visibility"] = self.path / f"{name}.visibility.npz"
+                staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
+                table.save(staged["visibility"])
+                stored = stored.with_visibility(table)
+            entry = self._entry(name, stored, final, staged, provenance)
+            with self._locked() as manifest:
+                if name in manifest["shapes"] and not force:
+                    raise ShapeError(f"shape {name!r} already exists in library {self.path}")
+                old = manifest["shapes"].get(name, {})
+                old_files = [self.path / old[k] for k in ("mesh", "visibility") if old.get(k)]
+                manifest["shapes"][name] = entry
+                self._swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
+            return stored
+        finally:
+            for path in staged.values():
+                path.unlink(missing_ok=True)
+
+    def _entry(
+        self,
+        name: str,
+        model: FacetModel,
+        final: dict[str, Path],
+        staged: dict[str, Path],
+        provenance: dict[str, Any],
+    ) -> dict[str, Any]:
+        inertia: dict[str, Any] = {
+            "source": model.inertia_source,
+            "tensor": model.inertia.tolist(),
+            "center_of_mass": model.center_of_mass.tolist(),
+        }
+        if not np.isnan(model.mass):
+            inertia["mass"] = model.mass
+        entry: dict[str, Any] = {
+            "mesh": final["mesh"].name,
+            "unit": model.unit,
+            "sha256": file_sha256(staged["mesh"]),
+            "facets": len(model.faces),
+            "groups": list(model.group_names),
+            "materials": {g: model.materials[g].to_dict() for g in model.group_names},
+            "inertia": inertia,
+            "visibility": final["visibility"].name if "visibility" in final else None,
+            "provenance": {
+                "license": "unknown",
+                "added": _dt.date.today().isoformat(),
+                **{k: v for k, v in provenance.items() if k not in ("file", "unit")},
+            },
+        }
+        if "visibility" in staged:
+            entry["visibility_sha256"] = file_sha256(staged["visibility"])
+        return entry
+
+    def _swap_in(
+        self,
+        staged: dict[str, Path],
+        final: dict[str, Path],
+        old_files: list[Path],
+        write_manifest: Any,
+    ) -> None:
+        """Rename staged files into place and write the manifest; undo everything on failure."""
+        backups: list[tuple[Path, Path]] = []
+        moved: list[Path] = []
+        try:
+            for path in {*old_files, *final.values()}:
+                if path.exists():
+                    backup = path.with_name(f".{path.name}.backup")
+                    os.replace(path, backup)
+                    backups.append((backup, path))
+            for key, path in staged.items():
+                os.replace(path, final[key])
+                moved.append(final[key])
+            write_manifest()
+        except BaseException:
+            for path in moved:
+                path.unlink(missing_ok=True)
+            for backup, path in backups:
+                os.replace(backup, path)
+            raise
+        for backup, _ in backups:
+            backup.unlink(missing_ok=True)
+
+    def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
+        """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
+        final = self.path / f"{name}.visibility.npz"
+        staged = temp_path(self.path, f".{name}.", ".npz")
+        try:
+            table.save(staged)
+            with self._locked() as manifest:
+                entry = manifest["shapes"].get(name)
+                if entry is None or entry.get("sha256") != mesh_sha256:
+                    return
+                entry["visibility"] = final.name
+                entry["visibility_sha256"] = file_sha256(staged)
+                self._swap_in(
+                    {"visibility": staged},
+                    {"visibility": final},
+                    [],
+                    lambda: self._write_manifest(manifest),
+                )
+        finally:
+            staged.unlink(missing_ok=True)
+
+    def remove(self, name: str) -> None:
+        """Remove a shape and its files."""
+        self._check_writable()
+        check_name(name)
+        with self._locked() as manifest:
+            if name not in manifest["shapes"]:
+                known = ", ".join(sorted(manifest["shapes"])) or "none"
+                raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
+            entry = manifest["shapes"].pop(name)
+            self._write_manifest(manifest)
+            for key in ("mesh", "visibility"):
+                if entry.get(key):
+                    (self.path / entry[key]).unlink(missing_ok=True)
