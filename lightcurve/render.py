@@ -1,0 +1,295 @@
+"""Photometric rendering of facet models: flux ratio and apparent magnitude.
+
+For effective facets ``i`` (unit normal ``n_i`` in the body frame, area ``A_i``, BRDF
+``ρ_i``) and unit body-frame vectors to the Sun ``L = A(q) ŝ`` and to the observer
+``V = A(q) ô`` at observer range ``d`` (DESIGN.md, "The photometric measurement model"):
+
+``F_obs / F_sun = (1 AU / r_sun)² Σ_i ρ_i(n_i, L, V) A_i (n_i·L)(n_i·V) lit_i seen_i / d²``,
+``m = −26.74 − 2.5 log10(F_obs / F_sun)``.
+
+``lit_i``/``seen_i`` are the unshadowed/unoccluded fractions of facet ``i`` seen along ``L``
+and ``V`` (their product approximates the fraction that is both): 1 for a convex body
+(``shadows="none"``), interpolated from the shape's precomputed visibility table
+(``"table"``), or ray cast for every epoch (``"exact"``, the reference). A fully dark epoch
+has zero flux and infinite magnitude.
+
+The computation runs in torch over any leading batch shape (particles × epochs) in
+cache-sized chunks; numpy inputs give numpy outputs. Every BRDF is evaluated through its
+cosine form (``n·L``, ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``,
+``H·v``), one call per material on a contiguous block of facets.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+import brdf
+from filters.attitude import rotate
+from lightcurve.geometry import AU_M
+from shapes import CompiledFacets, FacetModel, visible_fraction
+
+__all__ = ["SHADOW_MODES", "SUN_MAGNITUDE", "Renderer", "flux_to_magnitude", "magnitude_to_flux"]
+
+#: Apparent magnitude of the Sun at 1 AU (V band, DESIGN.md).
+SUN_MAGNITUDE = -26.74
+SHADOW_MODES = ("auto", "none", "table", "exact")
+
+
+def flux_to_magnitude(flux: Any) -> Any:
+    """``m = −26.74 − 2.5 log10(F/F_sun)``; zero flux gives ``+inf``.
+
+    Parameters
+    ----------
+    flux : array
+        Flux ratio ``F_obs / F_sun`` (≥ 0).
+
+    Returns
+    -------
+    array
+        Apparent magnitude.
+    """
+    if isinstance(flux, torch.Tensor):
+        return SUN_MAGNITUDE - 2.5 * torch.log10(flux)
+    with np.errstate(divide="ignore"):
+        return SUN_MAGNITUDE - 2.5 * np.log10(flux)
+
+
+def magnitude_to_flux(magnitude: Any) -> Any:
+    """Inverse of :func:`flux_to_magnitude`."""
+    return 10.0 ** (-0.4 * (magnitude - SUN_MAGNITUDE))
+
+
+@dataclass(frozen=True)
+class _Block:
+    """A contiguous run of effective facets sharing one material."""
+
+    start: int
+    stop: int
+    model: brdf.BRDF
+
+
+class Renderer:
+    """Renders a facet model's brightness for batches of attitudes and geometries.
+
+    Parameters
+    ----------
+    shape : FacetModel or CompiledFacets
+        The shape (its compiled, coplanar-merged facets are used).
+    shadows : {"auto", "none", "table", "exact"}
+        Self-shadowing mode. ``"auto"``: ``"none"`` when no facet can ever be shadowed
+        (convex bodies), else ``"table"`` when the shape carries a visibility table, else
+        ``"exact"``.
+    dtype : torch.dtype
+        Computation precision (float64 by default; float32 is ~2× faster).
+    device : str or torch.device, optional
+        Where to compute (default: CUDA when available, else CPU).
+    chunk_size : int
+        Rows (epochs × particles) per chunk; keeps the (chunk × facets) work arrays in cache.
+    scale_sun_distance : bool
+        Scale the Sun's flux by ``(1 AU / r_sun)²`` (True: physically right for any object).
+
+    Examples
+    --------
+    >>> from shapes import primitives
+    >>> r = Renderer(primitives.box(1.0, 2.0, 3.0))
+    >>> m = r.magnitude([0, 0, 0, 1], [1.5e11, 0, 0], [4e7, 1e7, 0])
+    """
+
+    def __init__(
+        self,
+        shape: FacetModel | CompiledFacets,
+        shadows: str = "auto",
+        dtype: torch.dtype = torch.float64,
+        device: str | torch.device | None = None,
+        chunk_size: int = 256,
+        scale_sun_distance: bool = True,
+    ) -> None:
+        compiled = shape.compiled() if isinstance(shape, FacetModel) else shape
+        if shadows not in SHADOW_MODES:
+            raise ValueError(f"shadows must be one of {', '.join(SHADOW_MODES)}, got {shadows!r}")
+        if shadows == "auto":
+            if not np.any(compiled.can_be_shadowed):
+                shadows = "none"
+            else:
+                shadows = "table" if compiled.visibility is not None else "exact"
+        if shadows == "table" and compiled.visibility is None:
+            raise ValueError("shadows='table' needs a shape with a visibility table")
+        self.compiled = compiled
+        self.shadows = shadows
+        self.dtype = dtype
+        self.device = torch.device(
+            device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
+        )
+        self.chunk_size = int(chunk_size)
+        self.scale_sun_distance = scale_sun_distance
+
+        # Sort facets by material so that each BRDF sees one contiguous block (a view).
+        order = np.argsort(compiled.material_index, kind="stable")
+        self._order = order
+        normals = compiled.normals[order]
+        tangents = compiled.tangents[order]
+        bitangents = np.cross(normals, tangents)
+        materials = compiled.material_index[order]
+        self._blocks: list[_Block] = []
+        self._anisotropic = False
+        for index in np.unique(materials):
+            rows = np.flatnonzero(materials == index)
+            material = compiled.materials[index]
+            model = brdf.get(material.brdf, **material.params)
+            self._anisotropic |= model.anisotropic
+            self._blocks.append(_Block(int(rows[0]), int(rows[-1]) + 1, model))
+        self.n_facets = len(order)
+        # The frame matrix stacks normals, tangents and bitangents: one GEMM per direction.
+        frame = (
+            np.concatenate([normals, tangents, bitangents], axis=0)
+            if self._anisotropic
+            else normals
+        )
+        self._frame = torch.as_tensor(frame, dtype=dtype, device=self.device)
+        self._areas = torch.as_tensor(compiled.areas[order], dtype=dtype, device=self.device)
+
+    # ------------------------------------------------------------------ public API
+    def flux(self, q: Any, sun: Any, observer: Any) -> Any:
+        """Flux ratio ``F_obs / F_sun`` (dimensionless).
+
+        Parameters
+        ----------
+        q : (..., 4) array
+            Attitudes (inertial → body).
+        sun, observer : (..., 3) array
+            Object → Sun and object → observer vectors in the inertial frame, metres
+            (broadcast against ``q``: e.g. ``q`` of shape (P, E, 4) with geometry (E, 3)).
+
+        Returns
+        -------
+        (...) array
+            Same kind as ``q`` (numpy or torch); torch results keep the input's device.
+        """
+        return self._evaluate(q, sun, observer, per_facet=False)
+
+    def magnitude(self, q: Any, sun: Any, observer: Any) -> Any:
+        """Apparent magnitude ``−26.74 − 2.5 log10(F_obs/F_sun)`` (``inf`` when dark).
+
+        Parameters are those of :meth:`flux`.
+        """
+        return flux_to_magnitude(self.flux(q, sun, observer))
+
+    def facet_flux(self, q: Any, sun: Any, observer: Any) -> Any:
+        """Contribution of each effective facet to the flux ratio.
+
+        Returns
+        -------
+        (..., K) array
+            In the order of ``self.compiled`` facets; sums to :meth:`flux` over the last axis.
+        """
+        out = self._evaluate(q, sun, observer, per_facet=True)
+        inverse = np.argsort(self._order)
+        return out[..., inverse]
+
+    # ------------------------------------------------------------------ internals
+    def _evaluate(self, q: Any, sun: Any, observer: Any, per_facet: bool) -> Any:
+        as_numpy = not isinstance(q, torch.Tensor)
+        out_device = None if as_numpy else q.device
+        q, sun, observer = (
+            torch.as_tensor(np.asarray(v) if not isinstance(v, torch.Tensor) else v).to(
+                self.device, self.dtype
+            )
+            for v in (q, sun, observer)
+        )
+        shape = torch.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
+        q = q.expand(*shape, 4).reshape(-1, 4)
+        sun = sun.expand(*shape, 3).reshape(-1, 3)
+        observer = observer.expand(*shape, 3).reshape(-1, 3)
+        sun_range = torch.linalg.vector_norm(sun, dim=-1)
+        obs_range = torch.linalg.vector_norm(observer, dim=-1)
+        light = rotate(q, sun / sun_range[:, None])
+        view = rotate(q, observer / obs_range[:, None])
+        scale = 1.0 / obs_range**2
+        if self.scale_sun_distance:
+            scale = scale * (AU_M / sun_range) ** 2
+        pieces = []
+        for start in range(0, light.shape[0], self.chunk_size):
+            stop = start + self.chunk_size
+            shadow = self._shadow_factor(light[start:stop], view[start:stop])
+            contrib = self._facet_terms(light[start:stop], view[start:stop], shadow)
+            contrib = contrib * scale[start:stop, None]
+            pieces.append(contrib if per_facet else contrib.sum(dim=-1))
+        result = torch.cat(pieces, dim=0) if pieces else torch.zeros(0, dtype=self.dtype)
+        result = result.reshape((*shape, *((self.n_facets,) if per_facet else ())))
+        if as_numpy:
+            return result.detach().cpu().numpy()
+        return result.to(out_device)
+
+    def _facet_terms(self, light: torch.Tensor, view: torch.Tensor, shadow: Any) -> torch.Tensor:
+        """``ρ A (n·L)(n·V) · shadow`` for every facet of a chunk, shape (chunk, K)."""
+        k = self.n_facets
+        proj_l = light @ self._frame.T
+        proj_v = view @ self._frame.T
+        nl, nv = proj_l[:, :k], proj_v[:, :k]
+        lv = (light * view).sum(dim=-1, keepdim=True)
+        hu = hv = None
+        if self._anisotropic:
+            half_norm = torch.sqrt(torch.clamp(2.0 + 2.0 * lv, min=1e-30))
+            hu = (proj_l[:, k : 2 * k] + proj_v[:, k : 2 * k]) / half_norm
+            hv = (proj_l[:, 2 * k :] + proj_v[:, 2 * k :]) / half_norm
+        rho = torch.cat(
+            [
+                block.model.from_cosines(
+                    nl[:, block.start : block.stop],
+                    nv[:, block.start : block.stop],
+                    lv,
+                    hu=None if hu is None else hu[:, block.start : block.stop],
+                    hv=None if hv is None else hv[:, block.start : block.stop],
+                )
+                for block in self._blocks
+            ],
+            dim=-1,
+        )
+        terms = rho * self._areas * torch.clamp(nl, min=0.0) * torch.clamp(nv, min=0.0)
+        return terms if shadow is None else terms * shadow
+
+    def _shadow_factor(self, light: torch.Tensor, view: torch.Tensor) -> Any:
+        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies."""
+        if self.shadows == "none":
+            return None
+        if self.shadows == "table":
+            table = self.compiled.visibility
+            both = table.interpolate(torch.cat([light, view], dim=0))
+        else:
+            directions = torch.cat([light, view], dim=0).detach().cpu().numpy().astype(float)
+            both = torch.as_tensor(
+                visible_fraction(self.compiled, directions), dtype=self.dtype, device=self.device
+            )
+        both = both[:, self._order]
+        n = light.shape[0]
+        return both[:n] * both[n:]
+
+
+def lambert_sphere_flux(albedo: float, radius: float, distance: float, alpha: Any) -> Any:
+    """Closed-form flux ratio of a Lambertian sphere at phase angle ``alpha`` (rad).
+
+    ``(2/3) ρ R²/d² · [sin α + (π − α) cos α]/π`` (Russell 1916), Sun at 1 AU.
+
+    Parameters
+    ----------
+    albedo : float
+        Lambert albedo ``rd`` (the BRDF is ``rd/π``).
+    radius, distance : float
+        Sphere radius and observer range (m).
+    alpha : array
+        Phase angle (rad).
+    """
+    alpha = np.asarray(alpha, dtype=float)
+    return (
+        (2.0 / 3.0)
+        * albedo
+        * radius**2
+        / distance**2
+        * (np.sin(alpha) + (math.pi - alpha) * np.cos(alpha))
+        / math.pi
+    )
