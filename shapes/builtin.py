@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from shapes import primitives
-from shapes.library import ShapeLibrary, builtin_library_path
+from shapes.library import LOCK, ShapeLibrary, builtin_library_path
 from shapes.material import REGOLITH
 
 __all__ = ["build_builtin_library"]
@@ -119,6 +119,7 @@ def build_builtin_library(
         )
     if wanted & set(_ASTEROIDS):
         shutil.copyfile(sources / "LICENSE-SBGAT.md", library.path / "LICENSE-SBGAT.md")
+    (library.path / LOCK).unlink(missing_ok=True)  # not part of the shipped data
     return library
 
 

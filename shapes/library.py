@@ -66,6 +66,8 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: Lock file of writers, beside the manifest.
+LOCK = ".manifest.lock"
 FORMAT = "space-lightcurves shape library"
 VERSION = 1
 _NAME = re.compile(r"[A-Za-z0-9_.-]+")
@@ -253,7 +255,7 @@ class ShapeLibrary:
     def _locked(self) -> Iterator[dict[str, Any]]:
         """Hold the writer lock and yield the current manifest."""
         self.path.mkdir(parents=True, exist_ok=True)
-        with FileLock(str(self.path / ".manifest.lock"), timeout=60):
+        with FileLock(str(self.path / LOCK), timeout=60):
             yield self._read_manifest()
 
     def _write_manifest(self, manifest: dict[str, Any]) -> None:

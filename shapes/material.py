@@ -12,7 +12,7 @@ model                  required parameters            optional parameters
 ``phong``              ``rd``, ``rs``, ``n``
 ``cook-torrance``      ``rd``, ``rs``, ``m``, ``f0``
 ``ashikhmin-shirley``  ``rd``, ``rs``, ``nu``, ``nv``
-``lommel-seeliger``    ``c``                          ``a``, ``d``, ``k``
+``lommel-seeliger``    ``c``                          ``w``, ``a``, ``d``, ``k``
 =====================  =============================  =======================
 
 The presets below are the defaults of the primitives (:mod:`shapes.primitives`); they are
@@ -46,7 +46,7 @@ BRDF_PARAMETERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "phong": (("rd", "rs", "n"), ()),
     "cook-torrance": (("rd", "rs", "m", "f0"), ()),
     "ashikhmin-shirley": (("rd", "rs", "nu", "nv"), ()),
-    "lommel-seeliger": (("c",), ("a", "d", "k")),
+    "lommel-seeliger": (("c",), ("w", "a", "d", "k")),
 }
 
 
@@ -177,5 +177,7 @@ BLACK_PAINT = Material("lambert", {"rd": 0.05}, name="black paint")
 ALUMINIUM = Material(
     "ashikhmin-shirley", {"rd": 0.2, "rs": 0.6, "nu": 200, "nv": 200}, name="aluminium"
 )
-#: Asteroid regolith: Lommel–Seeliger with the DAMIT Lambert weight c = 0.1.
-REGOLITH = Material("lommel-seeliger", {"c": 0.1}, name="regolith")
+#: Asteroid regolith: Lommel–Seeliger with DAMIT's Lambert weight c = 0.1 and phase function
+#: a = 0.5, d = 0.1 rad, k = −0.5 rad⁻¹ (the convexinv defaults); the albedo scale ``w`` is
+#: left to the BRDF's default (relative photometry).
+REGOLITH = Material("lommel-seeliger", {"c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5}, name="regolith")

@@ -1,0 +1,176 @@
+"""`lightcurve shapes …` through the CLI: round trip (acceptance 4), errors, built-ins (5)."""
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from lightcurve.cli import main
+from shapes import primitives
+from shapes.files import file_sha256
+from shapes.library import builtin_library_path
+
+
+def _snapshot(folder):
+    return {
+        p.name: file_sha256(p)
+        for p in sorted(folder.iterdir())
+        if p.is_file() and p.name != ".manifest.lock"
+    }
+
+
+def _run(capsys, *argv):
+    code = main(["shapes", *argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def mesh_file(tmp_path):
+    """An L-shaped (non-convex) OBJ with two groups, in km."""
+    a = primitives.box((0.002, 0.001, 0.001))
+    tower = a.vertices + np.array([0.0005, 0.001, 0.0])
+    path = tmp_path / "ell.obj"
+    lines = [f"v {x} {y} {z}" for x, y, z in np.vstack([a.vertices, tower]).tolist()]
+    lines.append("g base")
+    lines += [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in a.faces]
+    lines.append("g tower")
+    lines += [f"f {i + 9} {j + 9} {k + 9}" for i, j, k in a.faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(autouse=True)
+def _no_library_env(monkeypatch):
+    monkeypatch.delenv("LIGHTCURVE_LIBRARY", raising=False)
+
+
+def test_round_trip_add_list_show_render_remove(tmp_path, capsys, mesh_file):
+    library = tmp_path / "lib"
+    code, out, err = _run(
+        capsys,
+        "add",
+        "ell",
+        str(mesh_file),
+        "--library",
+        str(library),
+        "--brdf",
+        "ashikhmin-shirley",
+        "--param",
+        "rd=0.4",
+        "--param",
+        "rs=0.3",
+        "--param",
+        "nu=100",
+        "--param",
+        "nv=100",
+        "--units",
+        "km",
+        "--inertia",
+        "10,12,15",
+        "--license",
+        "CC0",
+    )
+    assert code == 0, err
+    assert "added ell: 24 facets" in out and "visibility table built" in out
+
+    code, out, _ = _run(capsys, "--library", str(library), "list")
+    assert code == 0 and "ell" in out and "table" in out
+
+    code, out, _ = _run(capsys, "show", "ell", "--library", str(library))
+    assert code == 0
+    for text in (
+        "facets: 24",
+        "base",
+        "tower",
+        "ashikhmin-shirley(rd=0.4, rs=0.3, nu=100",
+        "inertia (given",
+        "principal moments",
+        "license: CC0",
+        "volume: 4 m³",
+    ):
+        assert text in out
+
+    png = tmp_path / "ell.png"
+    code, out, _ = _run(
+        capsys, "render", "ell", "--out", str(png), "--view", "1,2,3", "--library", str(library)
+    )
+    assert code == 0 and png.is_file()
+    image = imread(png)[..., :3]
+    colours = np.unique((image.reshape(-1, 3) * 255).astype(int), axis=0)
+    assert image.std() > 0.05 and len(colours) > 20  # not blank
+
+    code, out, _ = _run(capsys, "remove", "ell", "--library", str(library))
+    assert code == 0 and "removed ell" in out
+    code, out, _ = _run(capsys, "list", "--library", str(library))
+    assert code == 0 and "0 shapes" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["add", "../x", "MESH"], "invalid shape name '../x'"),
+        (["add", "a/b", "MESH"], "invalid shape name 'a/b'"),
+        (["add", "good", "MALFORMED"], "malformed.obj"),
+        (["add", "first", "MESH"], "already exists"),
+        (["add", "new", "MESH", "--brdf", "lamber", "--param", "rd=0.4"], "unknown BRDF"),
+        (["add", "new", "MESH", "--brdf", "lambert", "--param", "rd"], "--param"),
+        (["add", "new", "MESH", "--inertia", "1,2"], "--inertia"),
+        (["add", "new", "MESH", "--inertia", "1,1,3"], "triangle inequality"),
+        (["remove", "nothing"], "no shape 'nothing'"),
+        (["show", "nothing"], "no shape 'nothing'"),
+        (["render", "first", "--out", "OUT", "--view", "0,0"], "--view"),
+    ],
+)
+def test_errors_are_one_line_and_leave_library_unchanged(
+    tmp_path, capsys, mesh_file, argv, message
+):
+    library = tmp_path / "lib"
+    assert main(["shapes", "add", "first", str(mesh_file), "--library", str(library)]) == 0
+    capsys.readouterr()
+    malformed = tmp_path / "malformed.obj"
+    malformed.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    replace = {"MESH": str(mesh_file), "MALFORMED": str(malformed), "OUT": str(tmp_path / "o.png")}
+    before = _snapshot(library)
+    code, _, err = _run(capsys, *[replace.get(a, a) for a in argv], "--library", str(library))
+    assert code != 0
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], err
+    assert lines[0].startswith("lightcurve shapes: error:")
+    assert _snapshot(library) == before
+
+
+@pytest.mark.parametrize("action", [["add", "mine", "MESH"], ["remove", "cube"]])
+def test_builtin_library_is_read_only(capsys, mesh_file, action):
+    before = _snapshot(builtin_library_path())
+    code, _, err = _run(capsys, *[str(mesh_file) if a == "MESH" else a for a in action])
+    assert code != 0
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "read-only" in lines[0] and "--library" in lines[0]
+    assert _snapshot(builtin_library_path()) == before
+
+
+def test_environment_selects_the_library(tmp_path, capsys, monkeypatch, mesh_file):
+    monkeypatch.setenv("LIGHTCURVE_LIBRARY", str(tmp_path / "env"))
+    assert main(["shapes", "add", "ell", str(mesh_file)]) == 0
+    code, out, _ = _run(capsys, "list")
+    assert code == 0 and str(tmp_path / "env") in out and "ell" in out
+
+
+def test_validate_passes_on_every_builtin_shape(capsys):
+    code, out, err = _run(capsys, "validate")
+    assert code == 0, err
+    for name in ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing", "itokawa", "bennu"):
+        assert f"ok {name}:" in out
+    assert "8 of 8 shapes valid" in out
+
+
+def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file):
+    library = tmp_path / "lib"
+    for name in ("one", "two"):
+        assert main(["shapes", "add", name, str(mesh_file), "--library", str(library)]) == 0
+    with open(library / "one.obj", "a") as handle:
+        handle.write("# edited\n")
+    code, out, err = _run(capsys, "validate", "--library", str(library))
+    assert code != 0
+    assert "FAILED one" in err and "sha256" in err
+    assert "ok two" in out and "1 of 2 shapes valid" in out
