@@ -1,0 +1,278 @@
+"""Resumable batch execution over input files: locally, in parallel, or on a Dask cluster.
+
+A batch maps a *job* — a picklable function ``job(input_path, out_dir, **options) -> dict``
+that writes its own result files atomically and returns a summary record — over many inputs.
+The batch layer
+
+* expands folders into their observation files and names each input's result folder after
+  its stem (colliding stems are refused up front);
+* skips inputs whose ``summary.json`` says ``"status": "ok"`` for the same input, unless
+  ``overwrite`` (resumability: an interrupted batch re-run does no finished work again);
+* removes temporary files left by a killed run, so no partial file survives;
+* turns any exception of a job into an ``"error"`` record with a one-line message, so a bad
+  input never stops the batch;
+* runs the jobs serially, in a local process pool (``workers``), or on a Dask distributed
+  cluster (``scheduler`` address), with a progress bar;
+* writes ``summary.csv`` with one row per input (failures included), atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from tqdm.auto import tqdm
+
+from lightcurve.atomic import atomic_write_json, atomic_write_table
+
+__all__ = ["INPUT_SUFFIXES", "collect_inputs", "run_batch", "summary_path"]
+
+logger = logging.getLogger(__name__)
+
+#: File suffixes taken from folders (DAMIT files have no fixed suffix: name them explicitly).
+INPUT_SUFFIXES = (".csv", ".parquet", ".pq")
+SUMMARY = "summary.json"
+
+Job = Callable[..., dict[str, Any]]
+
+
+def collect_inputs(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
+    """Expand files and folders into a sorted, de-duplicated list of input files.
+
+    Parameters
+    ----------
+    paths : iterable of path-like
+        Files (any format) and folders (their ``*.csv``/``*.parquet`` files, not recursive).
+
+    Returns
+    -------
+    list of pathlib.Path
+
+    Raises
+    ------
+    FileNotFoundError
+        For a path that does not exist.
+    ValueError
+        If no input is found, or two inputs share a stem (their results would collide).
+    """
+    files: list[Path] = []
+    for raw in paths:
+        path = Path(raw)
+        if path.is_dir():
+            files.extend(
+                sorted(
+                    p for p in path.iterdir() if p.suffix.lower() in INPUT_SUFFIXES and p.is_file()
+                )
+            )
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise FileNotFoundError(f"{path}: no such file or folder")
+    unique = list(dict.fromkeys(p.resolve() for p in files))
+    if not unique:
+        raise ValueError("no input files found (folders are searched for .csv and .parquet)")
+    stems: dict[str, Path] = {}
+    for path in unique:
+        if path.stem in stems:
+            raise ValueError(
+                f"inputs {stems[path.stem]} and {path} share the stem '{path.stem}': their "
+                "results would overwrite each other; rename one"
+            )
+        stems[path.stem] = path
+    return unique
+
+
+def summary_path(out_dir: str | os.PathLike[str], input_path: Path) -> Path:
+    """Where the summary of ``input_path`` goes: ``out_dir/<stem>/summary.json``."""
+    return Path(out_dir) / input_path.stem / SUMMARY
+
+
+def _finished(out_dir: Path, input_path: Path) -> dict[str, Any] | None:
+    path = summary_path(out_dir, input_path)
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if record.get("status") == "ok" and record.get("input") == str(input_path):
+        return record
+    return None
+
+
+def _remove_stale_temporaries(out_dir: Path) -> int:
+    count = 0
+    for tmp in out_dir.rglob(".*.tmp"):
+        tmp.unlink(missing_ok=True)
+        count += 1
+    return count
+
+
+def _run_one(job: Job, input_path: Path, out_dir: Path, options: dict[str, Any]) -> dict[str, Any]:
+    """Run a job; never raises: failures become error records (also written to disk)."""
+    start = time.perf_counter()
+    result_dir = out_dir / input_path.stem
+    try:
+        record = dict(job(input_path, result_dir, **options))
+        record.setdefault("status", "ok")
+        record.setdefault("error", None)
+    except Exception as exc:  # a bad input must not stop the batch: record and continue
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        logger.debug("input %s failed:\n%s", input_path, traceback.format_exc())
+        record = {"status": "error", "error": f"{type(exc).__name__}: {message}"}
+    record["input"] = str(input_path)
+    record["runtime_s"] = time.perf_counter() - start
+    try:
+        atomic_write_json(result_dir / SUMMARY, _json_ready(record))
+    except (OSError, ValueError) as exc:
+        record = {
+            "input": str(input_path),
+            "status": "error",
+            "error": f"cannot write summary: {exc}",
+            "runtime_s": record["runtime_s"],
+        }
+    return record
+
+
+def _json_ready(value: Any) -> Any:
+    """Replace non-finite floats by None so the summary stays strict JSON."""
+    if isinstance(value, float):
+        return value if value == value and abs(value) != float("inf") else None
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    return value
+
+
+def _init_worker(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def run_batch(
+    job: Job,
+    inputs: Sequence[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    options: dict[str, Any] | None = None,
+    overwrite: bool = False,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress: bool = True,
+    summary_columns: Sequence[str] = (),
+) -> pd.DataFrame:
+    """Run ``job`` over every input and write ``out_dir/summary.csv``.
+
+    Parameters
+    ----------
+    job : callable
+        ``job(input_path, result_dir, **options) -> dict`` (module-level, picklable).
+    inputs : sequence of path-like
+        Files and folders (see :func:`collect_inputs`).
+    out_dir : path-like
+        Result folder; one sub-folder per input.
+    options : dict, optional
+        Keyword arguments for the job.
+    overwrite : bool
+        Redo inputs that already have an ``"ok"`` summary.
+    workers : int
+        Local worker processes (1 runs in this process).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://host:8786``); the workers must see
+        the same file system.
+    progress : bool
+        Show a progress bar.
+    summary_columns : sequence of str
+        Columns of ``summary.csv`` in order (records' other keys follow).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The summary table (one row per input, in input order).
+    """
+    options = dict(options or {})
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = collect_inputs(inputs)
+    stale = _remove_stale_temporaries(out_dir)
+    if stale:
+        logger.info("removed %d temporary file(s) of an interrupted run", stale)
+    records: dict[Path, dict[str, Any]] = {}
+    todo = []
+    for path in files:
+        done = None if overwrite else _finished(out_dir, path)
+        if done is not None:
+            records[path] = done
+        else:
+            todo.append(path)
+    logger.info("%d input(s): %d done before, %d to run", len(files), len(records), len(todo))
+    bar = tqdm(total=len(todo), desc="invert", unit="file", disable=not progress or not todo)
+    try:
+        for path, record in _execute(job, todo, out_dir, options, workers, scheduler):
+            records[path] = record
+            bar.update(1)
+            bar.set_postfix_str(f"{path.stem}: {record['status']}")
+    finally:
+        bar.close()
+        table = _summary_table([records[p] for p in files if p in records], summary_columns)
+        atomic_write_table(table, out_dir / "summary.csv")
+    return table
+
+
+def _execute(
+    job: Job,
+    todo: list[Path],
+    out_dir: Path,
+    options: dict[str, Any],
+    workers: int,
+    scheduler: str | None,
+) -> Iterable[tuple[Path, dict[str, Any]]]:
+    if not todo:
+        return
+    if scheduler:
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
+
+        with Client(scheduler) as client:
+            futures = {
+                client.submit(
+                    _run_one, job, path, out_dir, options, key=f"invert-{path.stem}", pure=False
+                ): path
+                for path in todo
+            }
+            for future in dask_completed(futures):
+                yield futures[future], future.result()
+    elif workers > 1:
+        threads = max(1, (os.cpu_count() or 1) // workers)
+        with ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(threads,),
+        ) as pool:
+            futures = {pool.submit(_run_one, job, path, out_dir, options): path for path in todo}
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+    else:
+        for path in todo:
+            yield path, _run_one(job, path, out_dir, options)
+
+
+def _summary_table(records: list[dict[str, Any]], columns: Sequence[str]) -> pd.DataFrame:
+    rows = []
+    for record in records:
+        row = {}
+        for key, value in record.items():
+            row[key] = json.dumps(_json_ready(value)) if isinstance(value, dict | list) else value
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    ordered = [c for c in columns if c in table] + [c for c in table if c not in columns]
+    return table[ordered] if len(table) else pd.DataFrame(columns=list(columns))

@@ -1,0 +1,15 @@
+"""Picklable jobs for the batch-runner tests (a module so that worker processes import it)."""
+
+import time
+from pathlib import Path
+
+from lightcurve import io
+from lightcurve.atomic import atomic_write_table
+
+
+def count_rows(input_path: Path, result_dir: Path, delay: float = 0.0) -> dict:
+    """Read an observation file, write its table, report the row count."""
+    observations = io.read(input_path)
+    time.sleep(delay)
+    atomic_write_table(observations.table, result_dir / "estimates.parquet")
+    return {"n_measurements": len(observations), "values": [1.0, float("nan")]}
