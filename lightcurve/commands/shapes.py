@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+import brdf
 import shapes
 from shapes.library import LibraryReadOnlyError
 
@@ -178,6 +179,8 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     if args.param and not args.brdf:
         raise shapes.ShapeError("--param needs --brdf KIND")
     material = shapes.Material(args.brdf, _params(args.param)) if args.brdf else None
+    if material is not None:
+        brdf.get(material.brdf, **material.params)  # parameter ranges (BRDFParameterError)
     inertia = "auto" if args.inertia is None else _floats(args.inertia, "--inertia", (3, 6))
     provenance = {k: v for k, v in (("source", args.source), ("license", args.license)) if v}
     model = library.add(

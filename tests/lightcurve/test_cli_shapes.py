@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+import brdf
 from lightcurve.cli import main
-from shapes import primitives
+from shapes import get_library, material, primitives
 from shapes.files import file_sha256
 from shapes.library import builtin_library_path
 
@@ -114,6 +115,7 @@ def test_round_trip_add_list_show_render_remove(tmp_path, capsys, mesh_file):
         (["add", "first", "MESH"], "already exists"),
         (["add", "new", "MESH", "--brdf", "lamber", "--param", "rd=0.4"], "unknown BRDF"),
         (["add", "new", "MESH", "--brdf", "lambert", "--param", "rd"], "--param"),
+        (["add", "new", "MESH", "--brdf", "lambert", "--param", "rd=1.5"], "rd"),
         (["add", "new", "MESH", "--inertia", "1,2"], "--inertia"),
         (["add", "new", "MESH", "--inertia", "1,1,3"], "triangle inequality"),
         (["remove", "nothing"], "no shape 'nothing'"),
@@ -174,3 +176,16 @@ def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file):
     assert code != 0
     assert "FAILED one" in err and "sha256" in err
     assert "ok two" in out and "1 of 2 shapes valid" in out
+
+
+def test_shape_materials_match_the_brdf_registry():
+    """shapes keeps its own table of BRDF parameter names (it must not import brdf)."""
+    assert set(material.BRDF_PARAMETERS) == set(brdf.available())
+    for name, (required, optional) in material.BRDF_PARAMETERS.items():
+        assert set(required) | set(optional) == set(brdf.describe(name).parameter_names)
+    presets = [v for v in vars(material).values() if isinstance(v, material.Material)]
+    library = get_library(builtin_library_path())
+    shipped = [m for n in library.names() for m in library.load(n).materials.values()]
+    assert len(presets) >= 7 and len(shipped) >= 14
+    for spec in presets + shipped:
+        brdf.get(spec.brdf, **spec.params)  # every default material is in range
