@@ -1,0 +1,1 @@
+"""Adapters for real data sets shipped in ``data/`` (each module documents its source)."""

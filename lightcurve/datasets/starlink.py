@@ -1,0 +1,249 @@
+"""Starlink v1.5 brightness observations (Pomenis, Mount Lemmon) and the two-surface model.
+
+Source: Fankhauser, Askari & Tyson, "Satellite Optical Brightness" (2023), MIT license;
+files in ``data/starlink/``. The observations give the UTC time, the satellite height
+above the Earth (km), its topocentric altitude and azimuth (degrees) and the measured AB
+magnitude at Mount Lemmon (32.4434° N, 110.7881° W, ~2790 m).
+
+The brightness model of the paper (``starlink_surface_descriptions.txt``): two flat
+surfaces, the chassis underside (3.64 m², normal ``(0, 0, −1)`` pointing to nadir) and the
+solar array (22.68 m², normal ``(0, 1, 0)``, perpendicular to the chassis and turned toward
+the Sun). In the body frame used here ``+z`` is the local vertical (away from the Earth's
+centre; the geocentric vertical, within 0.2° of the geodetic one) and ``+y`` is the Sun's
+direction projected on the horizontal plane. Materials are the ``starlink-chassis`` and
+``starlink-solar-array`` presets of ``data/materials.toml``, fitted to the laboratory BRDF
+tables of the same paper — nothing is tuned to the brightness observations.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from brdf.materials import load_presets
+from filters.attitude import quaternion_from_matrix
+from lightcurve.ephemeris import Site, site_position, sun_position
+from lightcurve.observations import Observations, datetime_to_mjd, validate_table
+from lightcurve.render import Renderer
+from shapes import FacetModel, Material
+
+__all__ = [
+    "CHASSIS_AREA_M2",
+    "MOUNT_LEMMON",
+    "POMENIS_PATH",
+    "SOLAR_ARRAY_AREA_M2",
+    "predict_pomenis",
+    "read_pomenis",
+    "starlink_attitude",
+    "starlink_model",
+]
+
+POMENIS_PATH = (
+    Path(__file__).resolve().parents[2] / "data" / "starlink" / "pomenis_observations.csv"
+)
+MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon (Pomenis)")
+CHASSIS_AREA_M2 = 3.64
+SOLAR_ARRAY_AREA_M2 = 22.68
+EARTH_RADIUS_KM = 6378.137
+
+
+def read_pomenis(path: str | Path = POMENIS_PATH) -> pd.DataFrame:
+    """The Pomenis observations with parsed times.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``mjd`` (UTC), ``height_km``, ``altitude_deg``, ``azimuth_deg``, ``mag``
+        (AB), sorted by time.
+    """
+    raw = pd.read_csv(path, comment="#")
+    expected = {
+        "observation_time",
+        "satellite_height",
+        "satellite_altitude",
+        "satellite_azimuth",
+        "ab_magnitude",
+    }
+    missing = expected - set(raw.columns)
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
+    times = pd.to_datetime(raw["observation_time"], utc=True, format="ISO8601")
+    table = pd.DataFrame(
+        {
+            "mjd": datetime_to_mjd(times),
+            "height_km": raw["satellite_height"].astype(float),
+            "altitude_deg": raw["satellite_altitude"].astype(float),
+            "azimuth_deg": raw["satellite_azimuth"].astype(float),
+            "mag": raw["ab_magnitude"].astype(float),
+        }
+    )
+    return table.sort_values("mjd", kind="stable").reset_index(drop=True)
+
+
+def _plate(normal: np.ndarray, area: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two triangles of a square of ``area`` with outward ``normal``."""
+    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)
+    h = 0.5 * np.sqrt(area)
+    corners = np.array([-u - v, u - v, u + v, -u + v]) * h
+    return corners, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def starlink_model() -> FacetModel:
+    """The two-surface Starlink v1.5 model with the lab-fitted materials."""
+    presets = load_presets()
+    parts = [
+        ("chassis", np.array([0.0, 0.0, -1.0]), CHASSIS_AREA_M2, presets["starlink-chassis"]),
+        (
+            "solar_array",
+            np.array([0.0, 1.0, 0.0]),
+            SOLAR_ARRAY_AREA_M2,
+            presets["starlink-solar-array"],
+        ),
+    ]
+    vertices, faces, groups = [], [], []
+    for index, (_, normal, area, _) in enumerate(parts):
+        corners, tris = _plate(normal, area)
+        offset = 4 * index
+        vertices.append(corners + 2.0 * index * normal)
+        faces.append(tris + offset)
+        groups += [index, index]
+    materials = {
+        name: Material(preset.model, dict(preset.params), name=name) for name, _, _, preset in parts
+    }
+    return FacetModel(
+        np.concatenate(vertices),
+        np.concatenate(faces),
+        group_index=np.array(groups),
+        group_names=[p[0] for p in parts],
+        materials=materials,
+        name="starlink_v1.5",
+        provenance={"source": "Fankhauser, Askari & Tyson (2023)", "license": "MIT"},
+        inertia=np.eye(3),
+    )
+
+
+def starlink_attitude(position_km: np.ndarray, sun_km: np.ndarray) -> np.ndarray:
+    """Attitude quaternions of the nadir-pointing, Sun-facing configuration.
+
+    Parameters
+    ----------
+    position_km : (n, 3) array
+        Satellite geocentric position (GCRS, km).
+    sun_km : (n, 3) array
+        Sun geocentric position (GCRS, km).
+
+    Returns
+    -------
+    (n, 4) numpy.ndarray
+        ``q`` with ``A(q)`` rows = body x, y, z axes in GCRS (``+z`` up, ``+y`` toward the
+        Sun's horizontal projection).
+    """
+    z = position_km / np.linalg.norm(position_km, axis=1, keepdims=True)
+    to_sun = sun_km - position_km
+    y = to_sun - np.sum(to_sun * z, axis=1, keepdims=True) * z
+    y /= np.linalg.norm(y, axis=1, keepdims=True)
+    x = np.cross(y, z)
+    return quaternion_from_matrix(np.stack([x, y, z], axis=1))
+
+
+def _slant_range(height_km: np.ndarray, elevation: np.ndarray, site_radius_km: float) -> np.ndarray:
+    """Range to a satellite at ``height_km`` seen at ``elevation`` (rad), spherical Earth."""
+    r_sat = EARTH_RADIUS_KM + height_km
+    s = np.sin(elevation)
+    return -site_radius_km * s + np.sqrt((site_radius_km * s) ** 2 + r_sat**2 - site_radius_km**2)
+
+
+def pomenis_geometry(
+    table: pd.DataFrame, site: Site = MOUNT_LEMMON
+) -> tuple[Observations, np.ndarray]:
+    """Observation geometry (GCRS, km) and attitudes of the Pomenis observations.
+
+    Returns
+    -------
+    observations : Observations
+        ``mjd``, ``mag`` (measured), ``mag_err`` (0.1, nominal), Sun and observer vectors.
+    q : (n, 4) numpy.ndarray
+        Model attitudes.
+    """
+    from astropy import units as u
+    from astropy.coordinates import GCRS, AltAz, EarthLocation, SkyCoord
+    from astropy.time import Time
+
+    mjd = table["mjd"].to_numpy()
+    r_site = site_position(site, mjd)
+    elevation = np.deg2rad(table["altitude_deg"].to_numpy())
+    site_radius = EARTH_RADIUS_KM + site.altitude_m / 1000.0
+    distance = _slant_range(table["height_km"].to_numpy(), elevation, site_radius)
+    location = EarthLocation.from_geodetic(
+        site.longitude_deg * u.deg, site.latitude_deg * u.deg, site.altitude_m * u.m
+    )
+    times = Time(mjd, format="mjd", scale="utc")
+    topocentric = SkyCoord(
+        az=table["azimuth_deg"].to_numpy() * u.deg,
+        alt=table["altitude_deg"].to_numpy() * u.deg,
+        distance=distance * u.km,
+        frame=AltAz(obstime=times, location=location),
+    )
+    r_sat = topocentric.transform_to(GCRS(obstime=times)).cartesian.xyz.to_value(u.km).T
+    r_sun = sun_position(mjd)
+    frame = pd.DataFrame(
+        {
+            "mjd": mjd,
+            "mag": table["mag"].to_numpy(),
+            "mag_err": 0.1,
+            **{f"sun_{a}": (r_sun - r_sat)[:, k] for k, a in enumerate("xyz")},
+            **{f"obs_{a}": (r_site - r_sat)[:, k] for k, a in enumerate("xyz")},
+        }
+    )
+    meta = {
+        "object": "Starlink v1.5 (Pomenis)",
+        "frame": "GCRS",
+        "site": site.name,
+        "target": "satellite",
+        "duplicate_epochs": "allowed",
+    }
+    frame = frame.sort_values("mjd", kind="stable")
+    observations = Observations(validate_table(frame, "pomenis", meta), meta, "pomenis")
+    return observations, starlink_attitude(r_sat, r_sun)
+
+
+def predict_pomenis(table: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Predicted vs measured magnitude of the Pomenis observations.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame, optional
+        Observations as returned by :func:`read_pomenis` (default: all of them).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``mjd``, ``measured``, ``predicted``, ``residual`` (measured − predicted),
+        ``phase_angle_deg``, ``altitude_deg``, ``height_km``.
+    """
+    from lightcurve.geometry import phase_angle
+
+    table = read_pomenis() if table is None else table
+    observations, q = pomenis_geometry(table)
+    # The paper's model is two independent surfaces: no mutual shadowing.
+    predicted = Renderer(starlink_model(), shadows="none").magnitude(
+        q, observations.sun_vectors, observations.observer_vectors
+    )
+    measured = observations.magnitudes
+    return pd.DataFrame(
+        {
+            "mjd": observations.mjd,
+            "measured": measured,
+            "predicted": predicted,
+            "residual": measured - predicted,
+            "phase_angle_deg": np.rad2deg(
+                phase_angle(observations.sun_vectors, observations.observer_vectors)
+            ),
+            "altitude_deg": table["altitude_deg"].to_numpy(),
+            "height_km": table["height_km"].to_numpy(),
+        }
+    )
