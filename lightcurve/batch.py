@@ -115,7 +115,13 @@ def _remove_stale_temporaries(out_dir: Path) -> int:
     return count
 
 
-def _run_one(job: Job, input_path: Path, out_dir: Path, options: dict[str, Any]) -> dict[str, Any]:
+def _run_one(
+    job: Job,
+    input_path: Path,
+    out_dir: Path,
+    options: dict[str, Any],
+    error_template: dict[str, Any],
+) -> dict[str, Any]:
     """Run a job; never raises: failures become error records (also written to disk)."""
     start = time.perf_counter()
     result_dir = out_dir / input_path.stem
@@ -126,7 +132,8 @@ def _run_one(job: Job, input_path: Path, out_dir: Path, options: dict[str, Any])
     except Exception as exc:  # a bad input must not stop the batch: record and continue
         message = " ".join(str(exc).split()) or type(exc).__name__
         logger.debug("input %s failed:\n%s", input_path, traceback.format_exc())
-        record = {"status": "error", "error": f"{type(exc).__name__}: {message}"}
+        record = dict(error_template)
+        record.update(status="error", error=f"{type(exc).__name__}: {message}")
     record["input"] = str(input_path)
     record["runtime_s"] = time.perf_counter() - start
     try:
@@ -168,6 +175,7 @@ def run_batch(
     scheduler: str | None = None,
     progress: bool = True,
     summary_columns: Sequence[str] = (),
+    error_template: dict[str, Any] | None = None,
 ) -> pd.DataFrame:
     """Run ``job`` over every input and write ``out_dir/summary.csv``.
 
@@ -192,6 +200,9 @@ def run_batch(
         Show a progress bar.
     summary_columns : sequence of str
         Columns of ``summary.csv`` in order (records' other keys follow).
+    error_template : dict, optional
+        Keys and default values every error record carries (so error summaries have the
+        same keys as successful ones).
 
     Returns
     -------
@@ -216,7 +227,8 @@ def run_batch(
     logger.info("%d input(s): %d done before, %d to run", len(files), len(records), len(todo))
     bar = tqdm(total=len(todo), desc="invert", unit="file", disable=not progress or not todo)
     try:
-        for path, record in _execute(job, todo, out_dir, options, workers, scheduler):
+        runs = _execute(job, todo, out_dir, options, workers, scheduler, error_template or {})
+        for path, record in runs:
             records[path] = record
             bar.update(1)
             bar.set_postfix_str(f"{path.stem}: {record['status']}")
@@ -234,6 +246,7 @@ def _execute(
     options: dict[str, Any],
     workers: int,
     scheduler: str | None,
+    template: dict[str, Any],
 ) -> Iterable[tuple[Path, dict[str, Any]]]:
     if not todo:
         return
@@ -244,7 +257,14 @@ def _execute(
         with Client(scheduler) as client:
             futures = {
                 client.submit(
-                    _run_one, job, path, out_dir, options, key=f"invert-{path.stem}", pure=False
+                    _run_one,
+                    job,
+                    path,
+                    out_dir,
+                    options,
+                    template,
+                    key=f"invert-{path.stem}",
+                    pure=False,
                 ): path
                 for path in todo
             }
@@ -258,12 +278,14 @@ def _execute(
             initializer=_init_worker,
             initargs=(threads,),
         ) as pool:
-            futures = {pool.submit(_run_one, job, path, out_dir, options): path for path in todo}
+            futures = {
+                pool.submit(_run_one, job, path, out_dir, options, template): path for path in todo
+            }
             for future in as_completed(futures):
                 yield futures[future], future.result()
     else:
         for path in todo:
-            yield path, _run_one(job, path, out_dir, options)
+            yield path, _run_one(job, path, out_dir, options, template)
 
 
 def _summary_table(records: list[dict[str, Any]], columns: Sequence[str]) -> pd.DataFrame:
