@@ -1,0 +1,28 @@
+"""Plot an inversion result folder (DIR/<stem> written by `lightcurve invert`).
+
+Writes PNGs into the folder (or --out-dir): light_curve.png (measured vs fitted with
+residuals), states.png (attitude and rate estimates with 3-sigma bands; errors against truth
+when the input has truth columns), probabilities.png (shape probabilities over time, for
+several candidate shapes) and modes.png (the particle filter's final attitude modes).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from lightcurve.plots import plot_result
+
+NAME = "plot"
+HELP = "plot an inversion result folder as PNG figures"
+ORDER = 35
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("result", metavar="DIR/STEM", help="one input's result folder")
+    parser.add_argument("--out-dir", help="where to write the PNGs (default: the folder)")
+
+
+def run(args: argparse.Namespace) -> int:
+    for path in plot_result(args.result, args.out_dir):
+        print(path)
+    return 0
