@@ -42,6 +42,7 @@ filters at once (leading array dimensions), which is how the Monte Carlo study i
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -171,7 +172,9 @@ def feature_points(q: Any, position_camera: Any, features: Any) -> np.ndarray:
     return np.asarray(position_camera, dtype=float)[..., None, :] + body_to_camera
 
 
-def relative_attitude_derivative(ratios: Any, omega_chaser: Any, disturbance: Any = None):
+def relative_attitude_derivative(
+    ratios: Any, omega_chaser: Any, disturbance: Any = None
+) -> Callable[[np.ndarray], np.ndarray]:
     """``f(x)`` for the relative attitude state ``x = [q_TC, ω]`` (7 entries).
 
     ``q̇ = ½ Ω(ω − A(q) ω_C) q`` and ``ω̇ = p ∘ [ωy ωz, ωz ωx, ωx ωy] + w``.
@@ -307,6 +310,13 @@ class StereoEKF:
         Disturbance density ``q_ω`` (rad²/s³) of the target's Euler equations.
     acceleration_psd : float
         Relative translational acceleration noise density ``q_a`` (m²/s³).
+
+    Attributes
+    ----------
+    P : (..., 14, 14) numpy.ndarray
+        Error covariance of ``[δθ, δω, δk, δρ, δρ̇]``.
+    innovation, innovation_covariance : numpy.ndarray
+        Of the last update, ``(..., 4N)`` pixels and ``(..., 4N, 4N)`` pixels² (for NIS).
 
     Examples
     --------

@@ -11,6 +11,7 @@ epoch: truth, estimation error and filter sigma). Format: ``docs/relnav.md``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -136,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(
                 f"--mode {args.mode!r} is not a mode of {args.scenario}: {sorted(scenario.modes)}"
             )
-        scenario = ApproachScenario(**{**scenario.__dict__, "mode": args.mode})
+        scenario = dataclasses.replace(scenario, mode=args.mode)
     seed = seed if args.seed is None else args.seed
     result = simulate_approach(
         scenario, args.outlier_rate, args.outlier_size, robust=args.robust, seed=seed
