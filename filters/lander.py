@@ -591,9 +591,12 @@ class LanderModel:
         return estimate, post
 
     def attitude_error(self, x: np.ndarray, true_correction: np.ndarray) -> np.ndarray:
-        """Attitude error rotation vectors ``(B, 3)`` (rad, camera axes) of ``A_true Âᵀ``."""
+        """Attitude estimation errors ``(B, 3)`` (rad, camera axes): rotation of ``Â A_trueᵀ``.
+
+        Signed like the other errors (estimate minus truth), i.e. ``−δθ``.
+        """
         return quaternion_to_rotation_vector(
-            quaternion_multiply(true_correction, quaternion_conjugate(x[:, 6:10]))
+            quaternion_multiply(x[:, 6:10], quaternion_conjugate(true_correction))
         )
 
 
@@ -774,7 +777,8 @@ def navigation_errors(scenario: LandingScenario, run: NavigationRun, draws: Draw
     -------
     dict
         ``position`` (N+1, B, 3) m, ``velocity`` (N+1, B, 3) m/s and ``attitude``
-        (N+1, B, 3) rad (camera axes; zero when the attitude is not estimated).
+        (N+1, B, 3) rad (camera axes; zero when the attitude is not estimated); all signed
+        estimate minus truth.
     """
     axes = scenario.model.landmarks.site.axes
     truth, est = draws.truth, run.estimates
