@@ -277,6 +277,7 @@ class ShapeLibrary:
         keep_file: bool = False,
         resolution: int = DEFAULT_RESOLUTION,
         samples: int = DEFAULT_SAMPLES,
+        progress: bool = False,
     ) -> FacetModel:
         """Add a shape from a mesh file.
 
@@ -295,8 +296,8 @@ class ShapeLibrary:
         keep_file : bool
             Copy the mesh file verbatim instead of writing it as a grouped OBJ (only for
             self-contained files: no MTL or texture side files).
-        resolution, samples :
-            Visibility-table parameters for non-convex shapes.
+        resolution, samples, progress :
+            Visibility-table parameters for non-convex shapes (``progress``: a tqdm bar).
 
         Returns
         -------
@@ -309,9 +310,8 @@ class ShapeLibrary:
         self._check_free(name, force)
         model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
-        return self._commit(
-            name, model, record, force, mesh if keep_file else None, resolution, samples
-        )
+        table_options = {"resolution": resolution, "samples": samples, "progress": progress}
+        return self._commit(name, model, record, force, mesh if keep_file else None, table_options)
 
     def add_model(
         self,
@@ -329,7 +329,8 @@ class ShapeLibrary:
         self._check_free(name, force)
         validate(model)
         record = {**model.provenance, **dict(provenance or {})}
-        return self._commit(name, model, record, force, None, resolution, samples)
+        table_options = {"resolution": resolution, "samples": samples}
+        return self._commit(name, model, record, force, None, table_options)
 
     def _check_free(self, name: str, force: bool) -> None:
         if not force and name in self._read_manifest()["shapes"]:
@@ -344,8 +345,7 @@ class ShapeLibrary:
         provenance: dict[str, Any],
         force: bool,
         verbatim: Path | None,
-        resolution: int,
-        samples: int,
+        table_options: dict[str, Any],
     ) -> FacetModel:
         """Write mesh (+ table) under temporary names, then swap them in under the lock."""
         self.path.mkdir(parents=True, exist_ok=True)
@@ -370,7 +370,7 @@ class ShapeLibrary:
                 provenance=provenance,
             )
             if not stored.is_convex:
-                table = build_visibility_table(stored, resolution=resolution, samples=samples)
+                table = build_visibility_table(stored, **table_options)
                 final["visibility"] = self.path / f"{name}.visibility.npz"
                 staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
                 table.save(staged["visibility"])

@@ -192,6 +192,7 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         mass=args.mass,
         provenance=provenance,
         force=args.force,
+        progress=sys.stderr.isatty(),
     )
     print(
         f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
