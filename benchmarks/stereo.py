@@ -9,6 +9,7 @@ machine.
 
     python -m benchmarks.stereo [--runs 200] [--seed 0] [--out stereo.json]
     python -m benchmarks.stereo --runs 20 --duration 600 --window 300   # quick look
+    python -m benchmarks.stereo --sweeps none --figure docs/figures/stereo_nominal.png
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from benchmarks._machine import machine_info
 from filters.stereo_montecarlo import QUANTITIES, StereoScenario, run_monte_carlo
-from lightcurve.atomic import atomic_write_json
+from lightcurve.atomic import atomic_path, atomic_write_json
 from lightcurve.commands.stereo import load_stereo_scenario
 
 NOMINAL = Path(__file__).resolve().parents[1] / "data" / "scenarios" / "stereo_nominal.toml"
@@ -72,6 +73,10 @@ def main() -> None:
     parser.add_argument("--duration", type=float, help="override the simulated time (s)")
     parser.add_argument("--window", type=float, help="override the RTMSE window (s)")
     parser.add_argument("--out", type=Path, help="also write the JSON here")
+    parser.add_argument(
+        "--sweeps", choices=("all", "none"), default="all", help="run tables 5-7 or only table 4"
+    )
+    parser.add_argument("--figure", type=Path, help="plot the nominal errors vs time here (PNG)")
     args = parser.parse_args()
 
     base = load_stereo_scenario(args.scenario)
@@ -81,11 +86,13 @@ def main() -> None:
         base = base.with_(window=args.window)
     start = time.perf_counter()
     cache: dict[tuple, dict] = {}
+    histories: dict[tuple, dict] = {}
 
     def study(scenario: StereoScenario) -> dict:
         key = (scenario.feature_count, scenario.target_size, scenario.angle_noise)
         if key not in cache:
             result = run_monte_carlo(scenario, args.runs, seed=args.seed)
+            histories[key] = result.history
             cache[key] = {
                 "feature_count": key[0],
                 "target_size_m": key[1],
@@ -102,7 +109,7 @@ def main() -> None:
     nominal = study(base)
     tables = {"table4_nominal": nominal}
     trends = {}
-    for table, field, values, fixed in SWEEPS:
+    for table, field, values, fixed in SWEEPS if args.sweeps == "all" else ():
         rows = [study(base.with_(**fixed, **{field: v})) for v in values]
         tables[table] = rows
         trends[table] = {q: follows_trend(rows, q, TREND[table]) for q in QUANTITIES} | {
@@ -124,10 +131,43 @@ def main() -> None:
         "elapsed_s": time.perf_counter() - start,
         "machine": machine_info(),
     }
-    text = json.dumps(report, indent=2)
-    print(text)
+    print(json.dumps(report, indent=2))
     if args.out is not None:
         atomic_write_json(args.out, report)
+    if args.figure is not None:
+        key = (base.feature_count, base.target_size, base.angle_noise)
+        plot_history(histories[key], base.window, args.runs, args.figure)
+
+
+def plot_history(history: dict, window: float, runs: int, path: Path) -> None:
+    """Run-RMS error and run-RMS filter 1σ of each quantity vs time (the paper's figs. 5-9)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = {
+        "attitude_deg": "attitude (deg)",
+        "omega_rad_s": "rate (rad/s)",
+        "inertia_k": "inertia k",
+        "position_m": "position (m)",
+        "velocity_m_s": "velocity (m/s)",
+    }
+    t = history["time_s"] / 60
+    fig, axes = plt.subplots(len(labels), 1, figsize=(7, 10), sharex=True)
+    for ax, (name, label) in zip(axes, labels.items(), strict=True):
+        ax.semilogy(t, history[name], label="RMS error")
+        ax.semilogy(t, history[f"sigma_{name}"], "--", label="filter 1σ")
+        ax.axvspan((t[-1] * 60 - window) / 60, t[-1], color="0.9")
+        ax.set_ylabel(label)
+    axes[0].legend(loc="upper right")
+    axes[0].set_title(f"Stereo EKF, nominal scenario, {runs} runs (shaded: RTMSE window)")
+    axes[-1].set_xlabel("time (min)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
 
 
 if __name__ == "__main__":
