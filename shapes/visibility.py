@@ -297,7 +297,7 @@ def visible_fraction(
     model: FacetModel | CompiledFacets,
     directions: np.ndarray,
     *,
-    samples: int = DEFAULT_SAMPLES,
+    samples: int | None = None,
     backend: str = "auto",
 ) -> np.ndarray:
     """Exact (ray-cast) visible fraction of each effective facet from each direction.
@@ -308,8 +308,10 @@ def visible_fraction(
         Its compiled facets are used.
     directions : (D, 3) float
         Body-frame directions toward the observer (or the Sun).
-    samples : int
-        Target ray origins per effective facet (same scheme as the tables).
+    samples : int, optional
+        Target ray origins per effective facet (same scheme as the tables). Default: the
+        sampling of the model's visibility table when it has one (so that table and exact
+        modes differ only by interpolation), else :data:`DEFAULT_SAMPLES`.
     backend : {"auto", "embree", "trimesh"}
         Ray caster (see :class:`~shapes.raycast.Occluder`).
 
@@ -318,7 +320,11 @@ def visible_fraction(
     (D, K) float
         In [0, 1]; 0 for facets facing away from the direction.
     """
-    return _ray_fractions(_compiled(model), directions, False, samples, backend)
+    compiled = _compiled(model)
+    if samples is None:
+        table = compiled.visibility
+        samples = table.samples if table is not None else DEFAULT_SAMPLES
+    return _ray_fractions(compiled, directions, False, samples, backend)
 
 
 def build_visibility_table(

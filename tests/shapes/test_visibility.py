@@ -193,3 +193,12 @@ def test_table_follows_principal_frame_rotation(builtin):
     exact = shapes.visible_fraction(rotated, d[:50] @ rotation.T, samples=table.samples)
     reference = shapes.visible_fraction(model, d[:50], samples=table.samples)
     assert np.abs(exact - reference).mean() < 1e-3
+
+
+def test_exact_fraction_defaults_to_the_table_sampling(builtin):
+    compiled = builtin.load("box_wing").compiled()
+    d = _random_directions(20, seed=10)
+    default = shapes.visible_fraction(compiled, d)
+    np.testing.assert_array_equal(default, shapes.visible_fraction(compiled, d, samples=256))
+    coarse = shapes.visible_fraction(compiled, d, samples=4)
+    assert np.abs(coarse - default).max() > 0  # the sampling matters, so it must match
