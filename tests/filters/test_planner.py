@@ -244,3 +244,11 @@ def test_keyframes_give_a_lower_final_attitude_covariance_than_uniform(tumbling_
         propagate_schedule(full, uniform_steps(frames, count)[None])[-1, 0, :3, :3]
     )
     assert final_planned < 0.9 * final_uniform
+    # With a largest gap (features must stay matched) the choice is by information, not recency.
+    spaced = select_keyframes(
+        information, transition, process, p0, count, s_max=8, indices=(0, 1, 2)
+    )
+    assert np.diff(np.r_[0, spaced]).max() <= 8
+    planned = np.isin(np.arange(1, frames + 1), spaced)
+    final_spaced = np.trace(propagate_schedule(full, planned[None])[-1, 0, :3, :3])
+    assert final_spaced < 0.95 * final_uniform
