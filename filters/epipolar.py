@@ -482,7 +482,7 @@ def _reference_candidates(
     links: np.ndarray,
     linking: str,
     min_matches: int,
-    min_baseline: float,
+    baseline: tuple[float, float],
 ) -> list[int]:
     """Earlier frames to link frame ``k`` to, best first."""
     solved = np.flatnonzero(np.isfinite(q[:k, 0]))
@@ -496,7 +496,8 @@ def _reference_candidates(
         a, b = q[solved[-1]], q[solved[-2]]
         step = quaternion_multiply(quaternion_conjugate(b), a)
         predicted = quaternion_multiply(a, step)
-        ok &= np.asarray(attitude_angle(q[solved], predicted)) >= min_baseline
+        angle = np.asarray(attitude_angle(q[solved], predicted))
+        ok &= (angle >= baseline[0]) & (angle <= baseline[1])
     if not np.any(ok):
         return [int(solved[-1])]
     # Accumulated variance in units of one link with `min_matches` points: the path to the
@@ -514,16 +515,18 @@ def attitude_sequence(
     refine_iterations: int = 10,
     linking: str = "best",
     min_matches: int = 30,
-    min_baseline_deg: float = 3.0,
+    baseline_deg: tuple[float, float] = (3.0, 45.0),
 ) -> AttitudeSequence:
     """Attitudes of every frame relative to the first by chaining relative rotations (eq. 9).
 
     ``linking="previous"`` is the paper's chain ``R_t = R_Δt ⋯ R_Δ1`` over consecutive
     frames; its error is a random walk that grows with the number of frames. ``"best"``
     links each frame to the earlier frame that shares at least ``min_matches`` points, is
-    rotated at least ``min_baseline_deg`` away, and minimises the accumulated variance of the
-    path back to the first frame (a tumbling body shows the same faces again, so paths stay
-    short and the drift stays bounded). Both are products of relative rotations.
+    rotated by an angle inside ``baseline_deg`` from it (too little rotation degenerates the
+    essential matrix, too much foreshortens the shared view), and minimises the accumulated
+    variance of the path back to the first frame (a tumbling body shows the same faces again,
+    so paths stay short and the drift stays bounded). Both are products of relative
+    rotations.
 
     Parameters
     ----------
@@ -538,8 +541,9 @@ def attitude_sequence(
     linking : {"best", "previous"}
     min_matches : int
         Matches a reference frame must share with the new frame (``"best"`` only).
-    min_baseline_deg : float
-        Minimum rotation between reference and new frame (``"best"`` only).
+    baseline_deg : (float, float)
+        Allowed rotation between reference and new frame, degrees (``"best"`` only; the
+        rotation is predicted from the last two linked frames).
 
     Returns
     -------
@@ -559,7 +563,7 @@ def attitude_sequence(
     for k in range(1, size):
         reasons = []
         for j in _reference_candidates(
-            k, tracks.visible, q, links, linking, min_matches, math.radians(min_baseline_deg)
+            k, tracks.visible, q, links, linking, min_matches, tuple(np.radians(baseline_deg))
         ):
             _, uv1, uv2 = tracks.matches(j, k)
             x1, x2 = np.asarray(camera.normalized(uv1)), np.asarray(camera.normalized(uv2))

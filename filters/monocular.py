@@ -65,6 +65,7 @@ from filters.attitude import (
     rk4_step,
     rotation_vector_to_quaternion,
     tanh_from_inertia,
+    torque_free_derivative,
 )
 from filters.attitude._array import as_arrays
 from filters.attitude.kinematics import cross_matrix
@@ -327,7 +328,6 @@ class MonocularEKF:
         if self.Q.shape != (n, n) or self.R.shape != (3, 3):
             raise ValueError(f"process noise must be {n}x{n} and measurement noise 3x3")
         self.H = np.concatenate([np.eye(3), np.zeros((3, n - 3))], axis=1)
-        self._f = state_derivative(self.form)
 
     @property
     def dim(self) -> int:
@@ -348,9 +348,12 @@ class MonocularEKF:
             raise ValueError(f"time step must be positive, got {dt}")
         c = error_state_matrix(self.x[..., 4:7], self.x[..., 7:], self.form)
         phi = transition_series(c, dt)
-        h = dt / substeps
+        # ṗ = 0, so the inertia is fixed over the step: propagate [q, ω] with J⁻¹ computed once.
+        f = torque_free_derivative(self.form.tensor(self.x[..., 7:]))
+        x = self.x[..., :7]
         for _ in range(substeps):
-            self.x = rk4_step(self._f, self.x, h)
+            x = rk4_step(f, x, dt / substeps)
+        self.x = np.concatenate([x, self.x[..., 7:]], axis=-1)
         p = phi @ self.P @ np.swapaxes(phi, -1, -2) + self.Q * dt
         self.P = 0.5 * (p + np.swapaxes(p, -1, -2))
 

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from scipy import linalg
 from torch.func import jacfwd, jvp, vmap
 
 __all__ = [
@@ -189,11 +190,20 @@ class RankTest:
         Returns
         -------
         list of dict
-            One dict per unobservable direction, sign fixed so the largest component is
-            positive.
+            One dict per unobservable direction. The basis is made as sparse as the null
+            space allows: pivoted QR picks one state per direction and the basis is
+            combined so each direction has a zero component on the other pivots (for a
+            null space spanned by coordinate axes this returns the axes themselves). Unit
+            norm, largest component positive.
         """
+        null = self.null_space
+        if null.shape[1] == 0:
+            return []
+        _, _, pivots = linalg.qr(null.T, pivoting=True)
+        basis = null @ np.linalg.inv(null[pivots[: null.shape[1]], :])
         out = []
-        for v in self.null_space.T:
+        for v in basis.T:
+            v = v / np.linalg.norm(v)
             v = v * np.sign(v[np.argmax(np.abs(v))])
             out.append({n: float(c) for n, c in zip(names, v, strict=True) if abs(c) > threshold})
         return out
