@@ -19,8 +19,10 @@ attitude core's convention). The EKF (eqs. 9–18) estimates ``[r, ṙ]`` and, o
 small attitude error ``δθ`` of the camera, ``A_true = (I − [δθ×]) Â`` (multiplicative,
 small-angle vector part), which the seed's tables 2–3 start at 2° and report.
 
-Everything is batched over independent Monte Carlo runs ``B``: states ``(B, 6)``, attitude
-corrections ``(B, 4)``, covariances ``(B, n, n)`` with ``n = 9`` (or 6 with known attitude).
+Everything is batched over independent Monte Carlo runs ``B``: means ``(B, 10)``
+(``[r, ṙ]`` and the attitude correction quaternion), covariances ``(B, n, n)`` with ``n = 9``
+(or 6 with known attitude). :func:`draw`, :func:`navigate` and :func:`compare_strategies`
+run the seed's Monte Carlo study (sec. 4) for the three image strategies.
 """
 
 from __future__ import annotations
@@ -52,14 +54,23 @@ from filters.planner import FisherTrace, ObservationPlanner, PosteriorRollout
 _ITERATION_TOLERANCE = 1e-10
 
 __all__ = [
+    "STRATEGIES",
     "DescentTrajectory",
+    "Draws",
     "LanderDynamics",
     "LanderModel",
+    "LandingScenario",
     "LandmarkMap",
     "NadirPointing",
+    "NavigationRun",
     "SiteFrame",
     "anchor_pixels",
+    "compare_strategies",
+    "draw",
     "ekf_update",
+    "error_statistics",
+    "navigate",
+    "navigation_errors",
 ]
 
 
