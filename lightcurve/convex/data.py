@@ -1,0 +1,130 @@
+"""Light-curve data in the form the convex inversion fits: unit vectors, brightness, weights.
+
+Magnitudes become intensities ``I = 10^(−0.4 m)`` reduced to unit distances,
+``I · (r_obs/1 AU)² (r_sun/1 AU)²`` — except for DAMIT files, whose brightness is already
+reduced (calibrated curves) or relative. Relative light curves are divided by their mean, so
+that data and model are compared as ``I/⟨I⟩`` (Kaasalainen, Torppa & Muinonen 2001, eq. 3);
+calibrated curves keep their absolute scale (one common scale factor is fitted). The 1σ
+errors propagate from ``mag_err``: ``σ_I = 0.4 ln 10 · σ_m · I``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from lightcurve.geometry import AU_M, unit_and_range
+from lightcurve.observations import Observations
+
+__all__ = ["Photometry"]
+
+_FLUX_PER_MAG = 0.4 * math.log(10.0)
+
+
+@dataclass(frozen=True)
+class Photometry:
+    """Light curves prepared for convex inversion.
+
+    Attributes
+    ----------
+    mjd : (N,) float
+        Epochs (MJD; light-time corrected for DAMIT files).
+    sun, earth : (N, 3) float
+        Unit object → Sun and object → observer vectors, inertial (ecliptic J2000 for
+        asteroids).
+    brightness : (N,) float
+        Relative curves: ``I/⟨I⟩`` per curve; calibrated curves: reduced intensity divided by
+        the mean of all calibrated points.
+    sigma : (N,) float
+        1σ errors of ``brightness``.
+    curve : (N,) int
+        Light-curve index, 0 … n_curves − 1.
+    relative : (n_curves,) bool
+        Whether each curve is relative.
+    sources : list of str
+        Input files.
+    """
+
+    mjd: np.ndarray
+    sun: np.ndarray
+    earth: np.ndarray
+    brightness: np.ndarray
+    sigma: np.ndarray
+    curve: np.ndarray
+    relative: np.ndarray
+    sources: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.mjd)
+
+    @property
+    def n_curves(self) -> int:
+        return len(self.relative)
+
+    @property
+    def span_days(self) -> float:
+        """Time between the first and the last epoch (days)."""
+        return float(self.mjd.max() - self.mjd.min())
+
+    @property
+    def phase_angle(self) -> np.ndarray:
+        """Solar phase angle (rad), shape (N,)."""
+        return np.arccos(np.clip(np.sum(self.sun * self.earth, axis=1), -1.0, 1.0))
+
+    @classmethod
+    def from_observations(cls, observations: Sequence[Observations]) -> Photometry:
+        """Combine observation tables (one or more files) into one data set.
+
+        Each file's light curves (``lightcurve_id``; one curve when absent) keep their
+        ``relative`` flag; curves with fewer than two points are dropped (a relative curve of
+        one point carries no information).
+
+        Raises
+        ------
+        ValueError
+            If nothing is left to fit.
+        """
+        parts, relative, sources, offset = [], [], [], 0
+        for obs in observations:
+            ids = obs.lightcurve_ids
+            flags = obs.relative
+            sun, sun_range = unit_and_range(obs.sun_vectors)
+            earth, earth_range = unit_and_range(obs.observer_vectors)
+            intensity = 10.0 ** (-0.4 * obs.magnitudes)
+            if obs.meta.get("source_format") != "damit":
+                intensity = intensity * (earth_range / AU_M) ** 2 * (sun_range / AU_M) ** 2
+            sigma = _FLUX_PER_MAG * obs.magnitude_errors * intensity
+            for label in np.unique(ids):
+                rows = np.flatnonzero(ids == label)
+                if len(rows) < 2:
+                    continue
+                is_relative = bool(flags[rows[0]])
+                scale = intensity[rows].mean() if is_relative else 1.0
+                parts.append(
+                    (
+                        obs.mjd[rows],
+                        sun[rows],
+                        earth[rows],
+                        intensity[rows] / scale,
+                        sigma[rows] / scale,
+                        np.full(len(rows), offset),
+                    )
+                )
+                relative.append(is_relative)
+                offset += 1
+            sources.append(str(obs.source))
+        if not parts:
+            raise ValueError("no light curve with at least two points to fit")
+        mjd, sun, earth, brightness, sigma, curve = (
+            np.concatenate(p) for p in zip(*parts, strict=True)
+        )
+        relative = np.array(relative, dtype=bool)
+        calibrated = ~relative[curve]
+        if calibrated.any():
+            scale = brightness[calibrated].mean()
+            brightness = np.where(calibrated, brightness / scale, brightness)
+            sigma = np.where(calibrated, sigma / scale, sigma)
+        return cls(mjd, sun, earth, brightness, sigma, curve, relative, tuple(sources))

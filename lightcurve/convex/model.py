@@ -1,0 +1,293 @@
+"""The convex-inversion forward model with its Jacobian, batched in torch.
+
+For a batch of parameter vectors (pole starts × trial periods …) the model brightness at
+epoch j is (Kaasalainen & Torppa 2001, eq. 1; Kaasalainen, Torppa & Muinonen 2001, eqs. 3–4)
+
+``L_j = f(α_j) Σ_i A_i S(μ0_ij, μ_ij)``,  ``S = μ μ0 (1/(μ + μ0) + c)``  (μ, μ0 > 0),
+
+with ``μ0 = n_i · s_j``, ``μ = n_i · e_j`` (Sun and Earth directions in the body frame of
+:mod:`lightcurve.spin`), ``A_i = ΔA_i exp(Σ c_k Y_k(n_i))`` on the fixed Gaussian sphere,
+and the three-parameter phase function ``f(α) = a e^{−α/d} + k α + 1``. The scattering law
+and the phase function are those of :mod:`brdf.lommel_seeliger` (``ρ μ μ0`` with
+``w = 4π``). Relative light curves are compared as ``L_j/⟨L⟩_curve``; calibrated curves as
+``e^s L_j`` with one fitted scale ``s``.
+
+The Jacobian is exact and cheap: the areas enter linearly, so the shape columns are one
+matrix product ``f · S (A ∘ Y)``; the spin columns use ``∂S/∂μ0``, ``∂S/∂μ`` (autograd of the
+scattering kernel, elementwise) contracted with the facet normals,
+``Σ_i A_i ∂S/∂μ0 n_i · ∂s_B/∂θ``; the phase-function and spin-direction derivatives are
+per-epoch and come from forward-mode autograd. The convexity regularisation adds the three
+components of ``w √N Σ A_i n_i / (σ̃ Σ A_i)`` (the "dark facet" closing the Gaussian image,
+Kaasalainen & Torppa 2001, sec. 3.3; σ̃ the median data error) as extra residuals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from brdf import lommel_seeliger_from_cosines, phase_function
+from filters.attitude import rotate
+from lightcurve.convex.data import Photometry
+from lightcurve.convex.sphere import GaussianSphere
+from lightcurve.spin import spin_attitude
+
+__all__ = ["ConvexModel", "ParameterLayout"]
+
+SECONDS_PER_DAY = 86400.0
+SPIN_NAMES = ("lambda", "beta", "rate", "phi0")
+PHASE_NAMES = ("a", "d", "k")
+
+
+@dataclass(frozen=True)
+class ParameterLayout:
+    """Positions of the parameters in a parameter vector.
+
+    ``[c_0 … c_{K−1}, λ, β, ω, φ0, a, d, k, c_lambert, log_scale]`` — harmonics
+    coefficients, pole longitude/latitude (rad), rotation rate (rad/s), rotation angle at t0
+    (rad), phase-function parameters (d in rad), Lambert weight, log of the scale of the
+    calibrated curves.
+    """
+
+    n_coefficients: int
+
+    @property
+    def size(self) -> int:
+        return self.n_coefficients + 9
+
+    @property
+    def spin(self) -> slice:
+        return slice(self.n_coefficients, self.n_coefficients + 4)
+
+    @property
+    def phase(self) -> slice:
+        return slice(self.n_coefficients + 4, self.n_coefficients + 7)
+
+    @property
+    def lambert(self) -> int:
+        return self.n_coefficients + 7
+
+    @property
+    def log_scale(self) -> int:
+        return self.n_coefficients + 8
+
+    def index(self, name: str) -> int:
+        """Position of a named scalar parameter (``lambda``, ``beta``, ``rate``, ``phi0``,
+        ``a``, ``d``, ``k``, ``c``, ``log_scale``)."""
+        names = (*SPIN_NAMES, *PHASE_NAMES, "c", "log_scale")
+        if name not in names:
+            raise KeyError(f"unknown parameter {name!r}; known: {', '.join(names)}")
+        return self.n_coefficients + names.index(name)
+
+
+class ConvexModel:
+    """Batched model light curves and Jacobians for one data set and Gaussian sphere.
+
+    Parameters
+    ----------
+    data : Photometry
+    sphere : GaussianSphere
+    epoch_mjd : float
+        Reference epoch t0 of the rotation angle.
+    convexity_weight : float
+        Weight ``w`` of the convexity regularisation (DAMIT's default 0.1).
+    dtype : torch.dtype
+        float64 (default) or float32 for the facet × epoch arrays; the rotation phase is
+        always computed in float64.
+    device : str or torch.device, optional
+        Default: CUDA when available.
+    """
+
+    def __init__(
+        self,
+        data: Photometry,
+        sphere: GaussianSphere,
+        epoch_mjd: float,
+        convexity_weight: float = 0.1,
+        dtype: torch.dtype = torch.float64,
+        device: str | torch.device | None = None,
+    ) -> None:
+        self.data, self.sphere = data, sphere
+        self.layout = ParameterLayout(sphere.n_coefficients)
+        self.epoch_mjd = float(epoch_mjd)
+        self.device = torch.device(
+            device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
+        )
+        self.dtype = dtype
+
+        def tensor(a: np.ndarray, dt: torch.dtype = dtype) -> torch.Tensor:
+            return torch.as_tensor(np.asarray(a), dtype=dt, device=self.device)
+
+        self.seconds = tensor((data.mjd - self.epoch_mjd) * SECONDS_PER_DAY, torch.float64)
+        self.sun = tensor(data.sun, torch.float64)
+        self.earth = tensor(data.earth, torch.float64)
+        self.cos_alpha = tensor(np.sum(data.sun * data.earth, axis=1))
+        self.brightness = tensor(data.brightness)
+        self.sigma = tensor(data.sigma)
+        self.normals = tensor(sphere.normals)
+        self.facet_areas = tensor(sphere.areas)
+        self.basis = tensor(sphere.basis)
+        curve = torch.as_tensor(data.curve, device=self.device)
+        self.curve = curve
+        counts = np.bincount(data.curve, minlength=data.n_curves)
+        averaging = np.zeros((data.n_curves, len(data)))
+        averaging[data.curve, np.arange(len(data))] = 1.0 / counts[data.curve]
+        self.averaging = tensor(averaging)
+        self.relative_rows = tensor(data.relative[data.curve].astype(float))
+        self.has_calibrated = bool((~data.relative).any())
+        self.regularisation_scale = (
+            convexity_weight * math.sqrt(len(data)) / float(np.median(data.sigma))
+        )
+
+    # ------------------------------------------------------------------ pieces
+    def areas(self, coefficients: torch.Tensor) -> torch.Tensor:
+        """Facet areas ``ΔA_i exp(Σ c_k Y_k(n_i))``, shape (B, F)."""
+        return self.facet_areas * torch.exp(coefficients.to(self.dtype) @ self.basis.T)
+
+    def body_directions(self, spin: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Unit Sun and Earth directions in the body frame, each (B, N, 3) float64.
+
+        Parameters
+        ----------
+        spin : (B, 4) tensor
+            ``[λ, β, ω, φ0]`` (rad, rad, rad/s, rad).
+        """
+        lam, beta, rate, phi0 = (spin[:, k : k + 1] for k in range(4))
+        q = spin_attitude(lam, beta, phi0 + rate * self.seconds)
+        return rotate(q, self.sun), rotate(q, self.earth)
+
+    def scattering(self, mu0: torch.Tensor, mu: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """``S = μ μ0 (1/(μ + μ0) + c)`` on the lit and visible facets (brdf kernel, w = 4π)."""
+        rho = lommel_seeliger_from_cosines(mu0, mu, 1.0, w=4.0 * math.pi, c=c, a=0.0, d=1.0, k=0.0)
+        return rho * mu0 * mu
+
+    def phase(self, phase_params: torch.Tensor) -> torch.Tensor:
+        """Phase function ``f(α_j)``, shape (B, N)."""
+        a, d, k = (phase_params[:, i : i + 1].to(self.dtype) for i in range(3))
+        return phase_function(self.cos_alpha, a, d, k)
+
+    def convexity(self, areas: torch.Tensor) -> torch.Tensor:
+        """``Σ A_i n_i / Σ A_i`` (the dark facet's area vector relative to the total), (B, 3)."""
+        return (areas @ self.normals) / areas.sum(dim=1, keepdim=True)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(
+        self, params: torch.Tensor, jacobian: bool = True, lambert_free: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Model brightness (comparable to ``data.brightness``) and its Jacobian.
+
+        Parameters
+        ----------
+        params : (B, P) float64 tensor
+            Parameter vectors (:class:`ParameterLayout`).
+        jacobian : bool
+            Also return ∂model/∂params.
+        lambert_free : bool
+            Compute the Lambert-weight column (otherwise it is zero).
+
+        Returns
+        -------
+        model : (B, N) tensor
+        jac : (B, N, P) tensor or None
+        """
+        lay = self.layout
+        k = lay.n_coefficients
+        coefficients = params[:, :k]
+        spin = params[:, lay.spin]
+        c = params[:, lay.lambert].to(self.dtype)[:, None, None]
+        areas = self.areas(coefficients)
+        f = self.phase(params[:, lay.phase])
+        if not jacobian:
+            light, view = self.body_directions(spin)
+            mu0 = (light.to(self.dtype)) @ self.normals.T
+            mu = (view.to(self.dtype)) @ self.normals.T
+            brightness = f * (self.scattering(mu0, mu, c) @ areas[..., None])[..., 0]
+            return self._normalise(brightness, None, params)[0], None
+
+        # Spin directions and their derivatives (forward mode, per epoch).
+        def directions(s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+            light, view = self.body_directions(s[None])
+            return light[0], view[0]
+
+        (light, view), (d_light, d_view) = _value_and_jacfwd(directions, spin)
+        mu0 = (light.to(self.dtype) @ self.normals.T).requires_grad_(True)
+        mu = (view.to(self.dtype) @ self.normals.T).requires_grad_(True)
+        c_full = c.expand_as(mu0).clone().requires_grad_(True) if lambert_free else c
+        with torch.enable_grad():
+            scatter = self.scattering(mu0, mu, c_full)
+            wrt = (mu0, mu, c_full) if lambert_free else (mu0, mu)
+            grads = torch.autograd.grad(scatter.sum(), wrt)
+        scatter = scatter.detach()
+        s_area = (scatter @ areas[..., None])[..., 0]  # (B, N)
+        brightness = f * s_area
+
+        jac = torch.zeros((*brightness.shape, lay.size), dtype=self.dtype, device=self.device)
+        jac[..., :k] = f[..., None] * (scatter @ (areas[..., None] * self.basis))
+        g_light = (grads[0] * areas[:, None, :]) @ self.normals  # (B, N, 3)
+        g_view = (grads[1] * areas[:, None, :]) @ self.normals
+        jac[..., lay.spin] = f[..., None] * (
+            torch.einsum("bnx,bnxp->bnp", g_light, d_light.to(self.dtype))
+            + torch.einsum("bnx,bnxp->bnp", g_view, d_view.to(self.dtype))
+        )
+        _, d_phase = _value_and_jacfwd(lambda p: self.phase(p[None])[0], params[:, lay.phase])
+        jac[..., lay.phase] = d_phase * s_area[..., None]
+        if lambert_free:
+            jac[..., lay.lambert] = f * (grads[2] @ areas[..., None])[..., 0]
+        return self._normalise(brightness, jac, params)
+
+    def _normalise(
+        self, brightness: torch.Tensor, jac: torch.Tensor | None, params: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Relative curves → ``L/⟨L⟩``; calibrated curves → ``e^s L``."""
+        mean = (brightness @ self.averaging.T)[:, self.curve]
+        relative = self.relative_rows
+        scale = torch.exp(params[:, self.layout.log_scale].to(self.dtype))[:, None]
+        model = relative * brightness / mean + (1 - relative) * scale * brightness
+        if jac is None:
+            return model, None
+        jac_mean = torch.einsum("ln,bnp->blp", self.averaging, jac)[:, self.curve]
+        rel = relative[:, None]
+        out = (
+            rel * (jac / mean[..., None] - (brightness / mean**2)[..., None] * jac_mean)
+            + (1 - rel) * scale[..., None] * jac
+        )
+        out[..., self.layout.log_scale] = (1 - relative) * model
+        return model, out
+
+    def residuals(
+        self, params: torch.Tensor, jacobian: bool = True, lambert_free: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Weighted residuals ``(y − model)/σ`` plus the 3 regularisation rows.
+
+        Returns
+        -------
+        r : (B, N + 3) tensor
+        jac : (B, N + 3, P) tensor or None
+        """
+        model, jac = self.evaluate(params, jacobian, lambert_free)
+        data_r = (self.brightness - model) / self.sigma
+        k = self.layout.n_coefficients
+        coefficients = params[:, :k]
+
+        def regulariser(c: torch.Tensor) -> torch.Tensor:
+            return self.regularisation_scale * self.convexity(self.areas(c[None]))[0]
+
+        if jac is None:
+            reg = self.regularisation_scale * self.convexity(self.areas(coefficients))
+            return torch.cat([data_r, reg], dim=1), None
+        reg, d_reg = _value_and_jacfwd(regulariser, coefficients)
+        jac_reg = torch.zeros(
+            (len(params), 3, self.layout.size), dtype=self.dtype, device=self.device
+        )
+        jac_reg[..., :k] = d_reg
+        return torch.cat([data_r, reg], 1), torch.cat([-jac / self.sigma[:, None], jac_reg], 1)
+
+
+def _value_and_jacfwd(func, x: torch.Tensor):
+    """Batched value and forward-mode Jacobian of ``func`` over the leading axis of ``x``."""
+    jac = torch.func.vmap(torch.func.jacfwd(func, has_aux=False))(x)
+    value = torch.func.vmap(func)(x)
+    return value, jac
