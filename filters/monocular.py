@@ -378,7 +378,8 @@ class MonocularEKF:
         Parameters
         ----------
         z : (..., 4) array_like
-            Measured attitude relative to the first frame.
+            Measured attitude relative to the first frame; NaN rows are missing
+            measurements (no update for that filter).
 
         Returns
         -------
@@ -386,17 +387,22 @@ class MonocularEKF:
         nis : (...) numpy.ndarray
             Normalised innovation squared.
         """
-        nu = self.innovation(z)
+        z = np.asarray(z, dtype=float)
+        valid = np.all(np.isfinite(z), axis=-1)
+        nu = self.innovation(np.where(valid[..., None], z, self.x[..., :4]))
         s = self.P[..., :3, :3] + self.R
         nis = mahalanobis_squared(nu, s)
         # K = P Hᵀ S⁻¹ with H = [I 0]: P Hᵀ is the first three columns of P.
         gain = np.swapaxes(np.linalg.solve(s, np.swapaxes(self.P[..., :, :3], -1, -2)), -1, -2)
         dx = (gain @ nu[..., None])[..., 0]
-        self.P = _joseph(self.P, gain, self.H, self.R)
+        p = _joseph(self.P, gain, self.H, self.R)
         dq = np.concatenate([dx[..., :3], np.ones_like(dx[..., :1])], axis=-1)
         q = quaternion_normalize(quaternion_multiply(dq, self.x[..., :4]))
-        self.x = np.concatenate([q, self.x[..., 4:] + dx[..., 3:]], axis=-1)
-        return nu, nis
+        x = np.concatenate([q, self.x[..., 4:] + dx[..., 3:]], axis=-1)
+        # A missing measurement (NaN) leaves that filter at its prior.
+        self.x = np.where(valid[..., None], x, self.x)
+        self.P = np.where(valid[..., None, None], p, self.P)
+        return np.where(valid[..., None], nu, np.nan), np.where(valid, nis, np.nan)
 
     def batch_filter(self, times: Any, measurements: Any) -> FilterHistory:
         """Run the filter over a measurement sequence.
