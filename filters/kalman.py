@@ -22,48 +22,55 @@ __all__ = [
 ]
 
 
+def _t(a: np.ndarray) -> np.ndarray:
+    return np.swapaxes(a, -1, -2)
+
+
 def kalman_gain(p: np.ndarray, h: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Kalman gain ``K = P Hᵀ S⁻¹`` and innovation covariance ``S = H P Hᵀ + R``.
 
+    Broadcasts over leading (batch) dimensions, e.g. Monte Carlo runs.
+
     Parameters
     ----------
-    p : (n, n) array
+    p : (..., n, n) array
         Prior covariance.
-    h : (m, n) array
+    h : (..., m, n) array
         Measurement Jacobian.
-    r : (m, m) array
+    r : (..., m, m) array
         Measurement noise covariance.
 
     Returns
     -------
-    gain : (n, m) numpy.ndarray
-    innovation_covariance : (m, m) numpy.ndarray
+    gain : (..., n, m) numpy.ndarray
+    innovation_covariance : (..., m, m) numpy.ndarray
     """
-    s = h @ p @ h.T + r
-    s = 0.5 * (s + s.T)
-    gain = linalg.solve(s, h @ p, assume_a="pos").T
+    s = h @ p @ _t(h) + r
+    s = 0.5 * (s + _t(s))
+    gain = _t(np.linalg.solve(s, h @ p))  # S symmetric: K = (S⁻¹ H P)ᵀ
     return gain, s
 
 
 def joseph_update(p: np.ndarray, gain: np.ndarray, h: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Joseph-form covariance update ``(I − K H) P (I − K H)ᵀ + K R Kᵀ``.
 
-    Stays symmetric positive semi-definite for any gain, unlike ``(I − K H) P``.
+    Stays symmetric positive semi-definite for any gain, unlike ``(I − K H) P``. Broadcasts
+    over leading dimensions.
 
     Parameters
     ----------
-    p : (n, n) array
-    gain : (n, m) array
-    h : (m, n) array
-    r : (m, m) array
+    p : (..., n, n) array
+    gain : (..., n, m) array
+    h : (..., m, n) array
+    r : (..., m, m) array
 
     Returns
     -------
-    (n, n) numpy.ndarray
+    (..., n, n) numpy.ndarray
     """
-    i_kh = np.eye(p.shape[0]) - gain @ h
-    out = i_kh @ p @ i_kh.T + gain @ r @ gain.T
-    return 0.5 * (out + out.T)
+    i_kh = np.eye(p.shape[-1]) - gain @ h
+    out = i_kh @ p @ _t(i_kh) + gain @ r @ _t(gain)
+    return 0.5 * (out + _t(out))
 
 
 def mahalanobis_squared(error: Any, covariance: Any) -> np.ndarray:

@@ -47,3 +47,18 @@ def test_nees_of_gaussian_samples_is_inside_the_band():
     lower, upper = chi2_band(3, runs=400)
     assert lower < nees.mean() < upper
     assert chi2_band(2, 1) == pytest.approx((0.0506356, 7.3777589), rel=1e-6)
+
+
+def test_batched_forms_equal_single_ones():
+    rng = np.random.default_rng(51)
+    a = rng.normal(size=(5, 4, 4))
+    p = a @ np.swapaxes(a, 1, 2) + np.eye(4)
+    h = rng.normal(size=(5, 2, 4))
+    r = np.tile(np.diag([0.3, 0.5]), (5, 1, 1))
+    gains, s = kalman_gain(p, h, r)
+    updated = joseph_update(p, gains, h, r)
+    for i in range(5):
+        g, si = kalman_gain(p[i], h[i], r[i])
+        np.testing.assert_allclose(gains[i], g, atol=1e-12)
+        np.testing.assert_allclose(s[i], si, atol=1e-12)
+        np.testing.assert_allclose(updated[i], joseph_update(p[i], g, h[i], r[i]), atol=1e-12)
