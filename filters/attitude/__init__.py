@@ -51,6 +51,7 @@ from filters.attitude.propagation import (
     axisymmetric_solution,
     propagate,
     propagate_rk4,
+    rk4,
     rk4_step,
     torque_free_derivative,
 )
@@ -115,6 +116,7 @@ __all__ = [
     "quaternion_to_rotation_vector",
     "random_quaternion",
     "ratios_from_tanh",
+    "rk4",
     "rk4_step",
     "rotate",
     "rotation_vector_to_quaternion",

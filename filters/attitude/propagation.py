@@ -30,6 +30,7 @@ __all__ = [
     "axisymmetric_solution",
     "propagate",
     "propagate_rk4",
+    "rk4",
     "rk4_step",
     "torque_free_derivative",
 ]
@@ -66,15 +67,40 @@ def torque_free_derivative(inertia: Any) -> Derivative:
     return derivative
 
 
-def rk4_step(derivative: Derivative, x: Any, dt: float) -> Any:
-    """One classical RK4 step followed by quaternion renormalisation.
+def rk4(derivative: Callable[[float, Any], Any], t: float, x: Any, dt: float) -> Any:
+    """One classical Runge–Kutta step of ``ẋ = f(t, x)`` for any state (no normalisation).
 
     Parameters
     ----------
     derivative : callable
-        ``f(x) → ẋ`` for states ``(..., 7)`` whose first four entries are a quaternion
-        (e.g. from :func:`torque_free_derivative`). Extra trailing state entries
-        (parameters) are allowed as long as ``f`` handles them.
+        ``f(t, x) → ẋ`` (scipy's argument order), batched over leading dimensions of ``x``.
+    t : float
+        Time at the start of the step (s).
+    x : (..., n) array
+        States (numpy or torch).
+    dt : float
+        Step (s).
+
+    Returns
+    -------
+    (..., n) array
+    """
+    k1 = derivative(t, x)
+    k2 = derivative(t + 0.5 * dt, x + 0.5 * dt * k1)
+    k3 = derivative(t + 0.5 * dt, x + 0.5 * dt * k2)
+    k4 = derivative(t + dt, x + dt * k3)
+    return x + (dt / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def rk4_step(derivative: Derivative, x: Any, dt: float) -> Any:
+    """One RK4 step of an autonomous attitude state, then quaternion renormalisation.
+
+    Parameters
+    ----------
+    derivative : callable
+        ``f(x) → ẋ`` for states ``(..., n)`` whose first four entries are a quaternion
+        (e.g. from :func:`torque_free_derivative`); further entries (rates, parameters) are
+        integrated as they are.
     x : (..., n) array
         States at the start of the step.
     dt : float
@@ -85,11 +111,7 @@ def rk4_step(derivative: Derivative, x: Any, dt: float) -> Any:
     (..., n) array
     """
     xp, (x,) = as_arrays(x)
-    k1 = derivative(x)
-    k2 = derivative(x + 0.5 * dt * k1)
-    k3 = derivative(x + 0.5 * dt * k2)
-    k4 = derivative(x + dt * k3)
-    out = x + (dt / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+    out = rk4(lambda _t, y: derivative(y), 0.0, x, dt)
     return xp.concat([quaternion_normalize(out[..., :4]), out[..., 4:]], axis=-1)
 
 

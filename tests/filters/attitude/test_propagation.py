@@ -120,3 +120,14 @@ def test_propagate_rejects_bad_input():
         propagate(np.r_[0, 0, 0, 1, np.nan, 0, 0.1], [0.0, 1.0], J_SEED000)
     with pytest.raises(ValueError, match="triangle inequality"):
         propagate(np.r_[0, 0, 0, 1, 0, 0, 0.1], [0.0, 1.0], np.diag([1.0, 1.0, 3.0]))
+
+
+def test_generic_rk4_integrates_time_dependent_systems():
+    """ẋ = t: one step from 0 to 1 is exact for a quadratic (RK4 is exact up to cubics)."""
+    from filters.attitude import rk4
+
+    out = rk4(lambda t, x: np.full_like(x, t), 0.0, np.zeros(3), 1.0)
+    np.testing.assert_allclose(out, 0.5, atol=1e-15)
+    # Translational states are not renormalised.
+    big = rk4(lambda t, x: x, 0.0, np.full(4, 2.0), 0.1)
+    assert np.all(big > 2.0)
