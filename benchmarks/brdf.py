@@ -13,8 +13,8 @@ process CPU time (best of ``--repeats`` runs each; on a shared, loaded machine t
 figure with ``--threads 1`` is the stable one). Also reported: the machine (processor, cores,
 load average at start), library versions and torch's thread count. Prints JSON.
 
-Usage: ``python benchmarks/brdf.py [--epochs 10000] [--facets 1000] [--repeats 3] [--compile]
-[--threads N]``
+Usage (from the repository root): ``python -m benchmarks.brdf [--epochs 10000] [--facets 1000]
+[--repeats 3] [--compile] [--threads N]``
 """
 
 from __future__ import annotations
@@ -22,20 +22,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from functools import partial
-from pathlib import Path
 
-# This script is named like the package: drop its folder from the import path first.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
+import torch
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-
-import brdf  # noqa: E402
+import brdf
+from benchmarks._machine import machine_info
 
 MODELS = {
     "lambert": {"rd": 0.5},
@@ -106,15 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     count = args.epochs * args.facets
     cosines64 = random_cosines(args.epochs, args.facets, args.seed)
     report: dict = {
-        "machine": {
-            "processor": platform.processor() or platform.machine(),
-            "cpu_count": os.cpu_count(),
-            "load_average_at_start": os.getloadavg(),
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "torch": torch.__version__,
-            "torch_threads": torch.get_num_threads(),
-        },
+        "machine": {**machine_info(), "load_average_at_start": os.getloadavg()},
         "evaluations": count,
         "shape": [args.epochs, args.facets],
         "seed": args.seed,

@@ -10,7 +10,8 @@ constrain anisotropy).
 Prints JSON (RMS log10 residuals per model and per incidence, parameters with 1σ, timings,
 machine info) and writes the polar plots ``docs/figures/starlink_<material>_brdf.png``.
 
-Usage: ``python benchmarks/starlink_brdf.py [--figures DIR] [--starts N]``
+Usage (from the repository root): ``python -m benchmarks.starlink_brdf [--figures DIR]
+[--starts N]``
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -30,9 +30,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import scipy
-import torch
 
 import brdf
+from benchmarks._machine import machine_info
 
 ROOT = Path(__file__).resolve().parent.parent
 MATERIALS = {"chassis": "chassis_brdf.csv", "solar_array": "solar_array_brdf.csv"}
@@ -154,14 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--starts", type=int, default=5, help="fit starting points per model")
     args = parser.parse_args(argv)
     report: dict = {
-        "machine": {
-            "processor": platform.processor() or platform.machine(),
-            "cpu_count": os.cpu_count(),
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "scipy": scipy.__version__,
-            "torch": torch.__version__,
-        },
+        "machine": {**machine_info(), "scipy": scipy.__version__},
         "residual": "log10(model/data), dex",
         "materials": {},
     }

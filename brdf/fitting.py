@@ -234,7 +234,8 @@ def fit(
         result = least_squares(residuals, x0, bounds=(low, high), method="trf")
         if best is None or result.cost < best.cost:
             best = result
-    values = search.to_params(best.x)
+    fitted = search.to_params(best.x)
+    values = {name: fitted[name] for name in info.parameter_names}
     uncertainties = _uncertainties(search, best, len(target))
     uncertainties.update({n: uncertainties.get(s, 0.0) for n, s in tied.items()})
     message = best.message
