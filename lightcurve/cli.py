@@ -14,7 +14,9 @@ Subcommands live in :mod:`lightcurve.commands`, one module each. A command modul
 ``run(args) -> int``
     Executes the command and returns the process exit code.
 
-Modules are discovered at start-up, so adding a command means adding one file. User errors
+Modules are discovered at start-up (their ``NAME``/``HELP``/``ORDER`` are read from the
+source, and only the invoked command's module is imported, so the CLI starts fast), so
+adding a command means adding one file. User errors
 (:class:`ValueError`, :class:`OSError` and their subclasses, which every package in this
 project uses for bad input) are printed as one line ``lightcurve <cmd>: error: ...`` with
 exit code 2; ``-v`` shows the traceback and debug logging.
@@ -23,33 +25,73 @@ exit code 2; ``-v`` shows the traceback and debug logging.
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
+import importlib.util
 import logging
+import os
 import pkgutil
 import sys
-from collections.abc import Sequence
-from types import ModuleType
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 from lightcurve import __version__
 
 logger = logging.getLogger("lightcurve")
 
 
-def _command_modules() -> list[ModuleType]:
+@dataclass(frozen=True)
+class CommandSpec:
+    """A command module's name, one-line help and sort key, read without importing it."""
+
+    module: str
+    name: str
+    help: str
+    order: int
+
+
+def command_specs() -> list[CommandSpec]:
+    """Every command module's ``NAME``/``HELP``/``ORDER``, read from its source with ``ast``.
+
+    Reading the constants instead of importing the modules keeps ``lightcurve --help`` and
+    the start of every command fast: only the invoked command's module (and its heavy
+    dependencies such as torch or astropy) is imported.
+    """
     from lightcurve import commands
 
-    modules = []
+    specs = []
     for info in pkgutil.iter_modules(commands.__path__):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"lightcurve.commands.{info.name}")
-        if hasattr(module, "NAME") and hasattr(module, "run"):
-            modules.append(module)
-    return sorted(modules, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))
+        module = f"lightcurve.commands.{info.name}"
+        origin = importlib.util.find_spec(module).origin
+        constants = {}
+        for node in ast.parse(Path(origin).read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.Assign) and len(node.targets) == 1:
+                target = node.targets[0]
+                if isinstance(target, ast.Name) and target.id in ("NAME", "HELP", "ORDER"):
+                    constants[target.id] = ast.literal_eval(node.value)
+        if "NAME" in constants:
+            specs.append(
+                CommandSpec(
+                    module,
+                    constants["NAME"],
+                    constants.get("HELP", ""),
+                    int(constants.get("ORDER", 100)),
+                )
+            )
+    return sorted(specs, key=lambda spec: (spec.order, spec.name))
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the top-level argument parser with every discovered subcommand."""
+def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
+    """Return the argument parser.
+
+    Parameters
+    ----------
+    load : iterable of str, optional
+        Commands whose modules are imported to add their arguments (all when None).
+    """
     parser = argparse.ArgumentParser(
         prog="lightcurve",
         description="Simulate and invert light curves of space objects.",
@@ -59,10 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
         "-v", "--verbose", action="count", default=0, help="more logging; -v shows tracebacks"
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in _command_modules():
-        cmd = sub.add_parser(
-            module.NAME, help=module.HELP, description=getattr(module, "__doc__", None)
-        )
+    wanted = None if load is None else set(load)
+    for spec in command_specs():
+        if wanted is not None and spec.name not in wanted:
+            sub.add_parser(spec.name, help=spec.help, add_help=False)
+            continue
+        module = importlib.import_module(spec.module)
+        cmd = sub.add_parser(spec.name, help=spec.help, description=module.__doc__)
         cmd.add_argument(
             "-v", "--verbose", action="count", default=argparse.SUPPRESS, help=argparse.SUPPRESS
         )
@@ -71,9 +116,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _invoked_command(argv: Sequence[str]) -> str | None:
+    """The first argument that is not an option: the command name."""
+    return next((arg for arg in argv if not arg.startswith("-")), None)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``lightcurve`` console script."""
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = _invoked_command(argv)
+    parser = build_parser(load=[command] if command else [])
     args = parser.parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG
@@ -88,6 +140,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
+    except BrokenPipeError:  # output piped into `head` and the like: stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except (ValueError, OSError) as exc:
         if args.verbose:
             raise

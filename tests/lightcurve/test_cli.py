@@ -10,15 +10,39 @@ from lightcurve import __version__
 from lightcurve.cli import build_parser, main
 
 
-def test_help_lists_commands_and_version(capsys):
+def test_help_lists_commands_and_version():
     parser = build_parser()
     help_text = parser.format_help()
-    assert "propagate" in help_text
+    for name in ("propagate", "simulate", "invert", "shapes"):
+        assert name in help_text
     out = subprocess.run(
         [sys.executable, "-m", "lightcurve.cli", "--version"], capture_output=True, text=True
     )
     assert out.returncode == 0
     assert __version__ in out.stdout
+
+
+def test_help_starts_without_heavy_imports():
+    """`lightcurve --help` reads command names from source: torch and astropy stay unloaded."""
+    code = (
+        "import sys, contextlib, io\n"
+        "from lightcurve.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    try:\n"
+        "        main(['--help'])\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "print(sorted(m for m in ('torch', 'astropy', 'trimesh') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "[]", out.stderr
+
+
+def test_every_command_builds_its_parser():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    for name, command in sub.choices.items():
+        assert command.format_help(), name
 
 
 def test_propagate_demo_conserves_invariants(tmp_path, capsys):
