@@ -45,8 +45,11 @@ __all__ = [
     "PosteriorRollout",
     "Schedule",
     "covariance_measure",
+    "final_covariance_reduction",
     "fisher_information",
     "forecast",
+    "greedy_schedule",
+    "plan_final_covariance",
     "plan_forecast",
     "plan_schedule",
     "posterior_covariance",
@@ -508,15 +511,166 @@ def propagate_schedule(ahead: Forecast, taken: np.ndarray) -> np.ndarray:
     (L, B, n, n) numpy.ndarray
         Covariance after each step.
     """
-    out = np.empty_like(ahead.transition)
+    return _filter_covariances(ahead, taken)[1]
+
+
+def _filter_covariances(ahead: Forecast, taken: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted and filtered covariances ``P_{j|j−1}``, ``P_{j|j}`` along a forecast."""
+    prior = np.empty_like(ahead.transition)
+    post = np.empty_like(ahead.transition)
     p = ahead.covariance
     for j in range(ahead.length):
         p = _propagate(p, ahead.transition[j], ahead.process_noise[j])
+        prior[j] = p
         if taken[:, j].any():
-            post = posterior_covariance(p, ahead.information[j])
-            p = np.where(taken[:, j, None, None], post, p)
-        out[j] = p
-    return out
+            updated = posterior_covariance(p, ahead.information[j])
+            p = np.where(taken[:, j, None, None], updated, p)
+        post[j] = p
+    return prior, post
+
+
+def _final_cross_covariances(
+    ahead: Forecast, prior: np.ndarray, post: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``Cov(x_j, x_L)`` and smoothed ``P_{j|L}`` given the observations (RTS smoother).
+
+    With the smoother gain ``G_j = P_{j|j} Φ_{j+1}ᵀ P_{j+1|j}⁻¹`` (Rauch, Tung & Striebel
+    1965): ``P_{j|L} = P_{j|j} + G_j (P_{j+1|L} − P_{j+1|j}) G_jᵀ`` and the cross-covariance
+    with the last state ``Cov(x_j, x_L) = G_j Cov(x_{j+1}, x_L)``, both ending at ``P_{L|L}``.
+    """
+    gain_t = np.linalg.solve(prior[1:], ahead.transition[1:] @ post[:-1])  # G_jᵀ
+    gain = np.swapaxes(gain_t, -1, -2)
+    cross = np.empty_like(post)
+    smooth = np.empty_like(post)
+    cross[-1] = smooth[-1] = post[-1]
+    for j in range(ahead.length - 2, -1, -1):
+        cross[j] = gain[j] @ cross[j + 1]
+        smooth[j] = post[j] + gain[j] @ (smooth[j + 1] - prior[j + 1]) @ gain_t[j]
+    return cross, smooth
+
+
+def _gap_need(gap: np.ndarray, s_max: int) -> np.ndarray:
+    """Observations needed inside a gap of ``gap`` steps so that no interval exceeds ``s_max``."""
+    return np.maximum(-(-gap // s_max) - 1, 0)
+
+
+def _feasible(taken: np.ndarray, left: int, s_max: int) -> np.ndarray:
+    """Candidates ``(B, L)`` after which ``left − 1`` more observations can keep every gap
+    (from the start and between observations) at most ``s_max``."""
+    batch, length = taken.shape
+    steps = np.arange(1, length + 1)
+    ok = np.zeros_like(taken)
+    for b in range(batch):
+        points = np.r_[0, steps[taken[b]]]
+        need = int(_gap_need(np.diff(points), s_max).sum())
+        at = np.searchsorted(points, steps)  # the gap (points[at − 1], points[at]) or the tail
+        before = points[at - 1]
+        inner = at < points.size
+        after = points[np.minimum(at, points.size - 1)]
+        delta = _gap_need(steps - before, s_max) + np.where(
+            inner,
+            _gap_need(after - steps, s_max) - _gap_need(after - before, s_max),
+            0,
+        )
+        ok[b] = need + delta <= left - 1
+    return ok & ~taken
+
+
+def _information_root(information: np.ndarray) -> np.ndarray:
+    """Symmetric square root ``W`` of each Fisher information (``F = W W``)."""
+    eig, vec = np.linalg.eigh(information)
+    return (vec * np.sqrt(np.clip(eig, 0.0, None))[..., None, :]) @ np.swapaxes(vec, -1, -2)
+
+
+def final_covariance_reduction(
+    full: Forecast,
+    taken: np.ndarray,
+    indices: Sequence[int] | None = None,
+    measure: str = "trace",
+) -> np.ndarray:
+    """How much one more observation at each step would shrink the covariance at the last step.
+
+    Given the observations ``taken``, adding the information ``F_j = W_j W_j`` at step ``j``
+    updates the last state like a measurement of ``x_j``: with ``C_j = Cov(x_j, x_L)`` and the
+    smoothed ``P_{j|L}`` (one filter and one RTS smoother pass for all ``j`` at once),
+
+    ``P_L ← P_L − C_jᵀ W_j (I + W_j P_{j|L} W_j)⁻¹ W_j C_j``.
+
+    Parameters
+    ----------
+    full : Forecast
+        Prediction over the steps ``1 … L``.
+    taken : (B, L) bool array
+        Observations already planned.
+    indices : sequence of int, optional
+        States of the scored block (default: all).
+    measure : {"trace", "logdet"}
+        Drop of ``tr`` or of ``log det`` of the block.
+
+    Returns
+    -------
+    (B, L) numpy.ndarray
+        The drop per candidate step (also for steps already taken: a repeated observation).
+    """
+    covariance_measure(full.covariance[:1], indices, measure)  # validates the measure name
+    idx = np.arange(full.covariance.shape[-1]) if indices is None else np.asarray(indices)
+    block = (..., idx[:, None], idx[None, :])
+    root = _information_root(full.information)
+    prior, post = _filter_covariances(full, taken)
+    cross, smooth = _final_cross_covariances(full, prior, post)
+    u = np.swapaxes(cross, -1, -2) @ root
+    inner = np.eye(root.shape[-1]) + root @ smooth @ root
+    drop = (u @ np.linalg.solve(inner, np.swapaxes(u, -1, -2)))[block]
+    if measure == "trace":
+        gain = np.trace(drop, axis1=-2, axis2=-1)
+    else:
+        final = post[-1][block]
+        gain = np.linalg.slogdet(final)[1] - np.linalg.slogdet(final - drop)[1]
+    return gain.T
+
+
+def greedy_schedule(
+    full: Forecast,
+    count: int,
+    s_max: int | None = None,
+    indices: Sequence[int] | None = None,
+    measure: str = "trace",
+) -> Schedule:
+    """Greedy choice of ``count`` observations for the smallest covariance at the last step.
+
+    One observation at a time, the step that shrinks the final covariance most given those
+    already chosen (before and after it) is added, scored exactly for every candidate at once
+    by :func:`final_covariance_reduction` (greedy A- or D-optimal sensor scheduling, e.g.
+    Shamaiah, Banerjee & Vikalo 2010). With ``s_max``, only candidates that leave enough
+    observations to keep every interval (from the start and between observations) at most
+    ``s_max`` qualify.
+
+    Parameters
+    ----------
+    full : Forecast
+        Prediction over the candidate steps ``full.step + 1 … full.step + L``.
+    count : int
+        Observations to take (``1 … L``).
+    s_max : int, optional
+        Largest interval (steps); default unlimited.
+    indices : sequence of int, optional
+        States whose final covariance is minimised (default: all).
+    measure : {"trace", "logdet"}
+
+    Returns
+    -------
+    Schedule
+    """
+    length, batch = full.length, full.covariance.shape[0]
+    if not 0 < count <= length:
+        raise ValueError(f"observation count must be in [1, {length}], got {count}")
+    taken = np.zeros((batch, length), dtype=bool)
+    for chosen in range(count):
+        gain = final_covariance_reduction(full, taken, indices, measure)
+        allowed = ~taken if s_max is None else _feasible(taken, count - chosen, s_max)
+        best = np.argmax(np.where(allowed, gain, -np.inf), axis=-1)
+        taken[np.arange(batch), best] = True
+    return Schedule(taken, propagate_schedule(full, taken))
 
 
 def uniform_steps(length: int, count: int) -> np.ndarray:
@@ -611,6 +765,50 @@ def plan_forecast(
     return Schedule(taken, covariances)
 
 
+def plan_final_covariance(
+    full: Forecast,
+    count: int,
+    s_max: int | None = None,
+    indices: Sequence[int] | None = None,
+    measure: str = "trace",
+    method: str = "greedy",
+) -> Schedule:
+    """Choose ``count`` observations along a forecast that minimise the covariance at its end.
+
+    Used for keyframes of a recorded sequence (:func:`select_keyframes`) and epochs of a light
+    curve (:mod:`lightcurve.photometric_planning`), batched over runs.
+
+    Parameters
+    ----------
+    full : Forecast
+        Prediction over the candidate steps ``full.step + 1 … full.step + L``.
+    count : int
+        Observations to take (``1 … L``).
+    s_max : int, optional
+        Largest interval between observations (default: unlimited).
+    indices : sequence of int, optional
+        States whose final covariance is minimised (default: all).
+    measure : {"trace", "logdet"}
+    method : {"greedy", "rollout"}
+        :func:`greedy_schedule` (the whole set, in any order), or the sequential
+        :class:`PosteriorRollout` planner with its window on the last step (what an online
+        planner decides, one observation after the other).
+
+    Returns
+    -------
+    Schedule
+    """
+    if method == "greedy":
+        return greedy_schedule(full, count, s_max, indices, measure)
+    if method != "rollout":
+        raise ValueError(f"method must be 'greedy' or 'rollout', got {method!r}")
+    if not 0 < count <= full.length:
+        raise ValueError(f"observation count must be in [1, {full.length}], got {count}")
+    horizon = full.step + full.length
+    criterion = PosteriorRollout(indices=indices, measure=measure, settle_step=horizon)
+    return plan_forecast(full, ObservationPlanner(criterion, s_max or full.length, horizon), count)
+
+
 def select_keyframes(
     information: np.ndarray,
     transition: np.ndarray,
@@ -620,13 +818,14 @@ def select_keyframes(
     s_max: int | None = None,
     indices: Sequence[int] | None = None,
     measure: str = "trace",
+    method: str = "greedy",
 ) -> np.ndarray:
     """Choose ``count`` keyframes of a recorded sequence that minimise the final covariance.
 
     For the monocular pipeline (or any filter over a frame sequence): ``information[j]`` is
     the Fisher information ``Hᵀ R⁻¹ H`` of frame ``j + 1`` (from its features' geometry and
     pixel noise), ``transition``/``process_noise`` the filter's ``Φ``/``Q`` between frames.
-    The :class:`PosteriorRollout` criterion with its window on the last frame plans the set.
+    :func:`plan_final_covariance` plans the set.
 
     Parameters
     ----------
@@ -641,15 +840,14 @@ def select_keyframes(
     indices : sequence of int, optional
         States whose final covariance is minimised (default: all).
     measure : {"trace", "logdet"}
+    method : {"greedy", "rollout"}
+        See :func:`plan_final_covariance`.
 
     Returns
     -------
     (count,) int numpy.ndarray
         Selected frame numbers in ``1 … T``.
     """
-    length = len(information)
-    if not 0 < count <= length:
-        raise ValueError(f"keyframe count must be in [1, {length}], got {count}")
     full = Forecast(
         0,
         np.asarray(covariance, dtype=float)[None],
@@ -657,6 +855,5 @@ def select_keyframes(
         np.asarray(process_noise, dtype=float)[:, None],
         np.asarray(information, dtype=float)[:, None],
     )
-    criterion = PosteriorRollout(indices=indices, measure=measure, settle_step=length)
-    planner = ObservationPlanner(criterion, s_max or length, length)
-    return np.flatnonzero(plan_forecast(full, planner, count).taken[0]) + 1
+    schedule = plan_final_covariance(full, count, s_max, indices, measure, method)
+    return np.flatnonzero(schedule.taken[0]) + 1
