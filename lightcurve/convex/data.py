@@ -69,6 +69,28 @@ class Photometry:
         """Time between the first and the last epoch (days)."""
         return float(self.mjd.max() - self.mjd.min())
 
+    def thinned(self, per_curve: int) -> Photometry:
+        """A copy keeping at most ``per_curve`` evenly spaced points of each light curve.
+
+        Period scans run on thinned data: the period resolution comes from the time span,
+        not from the sampling within a night.
+        """
+        keep = np.zeros(len(self), dtype=bool)
+        for label in range(self.n_curves):
+            rows = np.flatnonzero(self.curve == label)
+            pick = np.unique(np.round(np.linspace(0, len(rows) - 1, min(per_curve, len(rows)))))
+            keep[rows[pick.astype(int)]] = True
+        fields = ("mjd", "sun", "earth", "brightness", "sigma", "curve")
+        values = {name: getattr(self, name)[keep] for name in fields}
+        # Relative curves are renormalised to unit mean over the points kept.
+        means = np.bincount(values["curve"], values["brightness"], self.n_curves) / np.maximum(
+            np.bincount(values["curve"], minlength=self.n_curves), 1
+        )
+        scale = np.where(self.relative, means, 1.0)[values["curve"]]
+        values["brightness"] = values["brightness"] / scale
+        values["sigma"] = values["sigma"] / scale
+        return Photometry(**values, relative=self.relative, sources=self.sources)
+
     @property
     def phase_angle(self) -> np.ndarray:
         """Solar phase angle (rad), shape (N,)."""

@@ -30,10 +30,10 @@ import numpy as np
 import torch
 
 from brdf import lommel_seeliger_from_cosines, phase_function
-from filters.attitude import rotate
+from filters.attitude import attitude_matrix, axis_angle_to_quaternion, rotate
 from lightcurve.convex.data import Photometry
 from lightcurve.convex.sphere import GaussianSphere
-from lightcurve.spin import spin_attitude
+from lightcurve.spin import pole_quaternion
 
 __all__ = ["ConvexModel", "ParameterLayout"]
 
@@ -124,6 +124,7 @@ class ConvexModel:
         self.seconds = tensor((data.mjd - self.epoch_mjd) * SECONDS_PER_DAY, torch.float64)
         self.sun = tensor(data.sun, torch.float64)
         self.earth = tensor(data.earth, torch.float64)
+        self.z_axis = tensor([0.0, 0.0, 1.0], torch.float64)
         self.cos_alpha = tensor(np.sum(data.sun * data.earth, axis=1))
         self.brightness = tensor(data.brightness)
         self.sigma = tensor(data.sigma)
@@ -147,17 +148,53 @@ class ConvexModel:
         """Facet areas ``ΔA_i exp(Σ c_k Y_k(n_i))``, shape (B, F)."""
         return self.facet_areas * torch.exp(coefficients.to(self.dtype) @ self.basis.T)
 
-    def body_directions(self, spin: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def body_directions(
+        self, spin: torch.Tensor, derivatives: bool = False
+    ) -> tuple[torch.Tensor, ...]:
         """Unit Sun and Earth directions in the body frame, each (B, N, 3) float64.
+
+        ``v_B = R_z(φ0 + ω t) · A_pole(λ, β) · v`` (:mod:`lightcurve.spin`). With
+        ``derivatives`` also their derivatives with respect to ``[λ, β, ω, φ0]``, each
+        (B, N, 3, 4): ``∂v_B/∂φ0 = (v_B,y, −v_B,x, 0)``, ``∂v_B/∂ω = t ∂v_B/∂φ0``, and the
+        pole derivatives ``R_z(φ) ∂A_pole/∂(λ, β) v`` by forward-mode autograd of the (B, 3, 3)
+        pole matrices.
 
         Parameters
         ----------
         spin : (B, 4) tensor
             ``[λ, β, ω, φ0]`` (rad, rad, rad/s, rad).
         """
-        lam, beta, rate, phi0 = (spin[:, k : k + 1] for k in range(4))
-        q = spin_attitude(lam, beta, phi0 + rate * self.seconds)
-        return rotate(q, self.sun), rotate(q, self.earth)
+        lam, beta, rate, phi0 = (spin[:, k] for k in range(4))
+
+        def pole_matrix(angles: torch.Tensor) -> torch.Tensor:
+            return attitude_matrix(pole_quaternion(angles[..., 0], angles[..., 1]))
+
+        if derivatives:
+            matrix, d_matrix = _value_and_jacfwd(pole_matrix, spin[:, :2])
+        else:
+            matrix = pole_matrix(spin[:, :2])
+        phi = phi0[:, None] + rate[:, None] * self.seconds
+        q_phi = axis_angle_to_quaternion(self.z_axis, phi)  # (B, N, 4)
+        out = []
+        for vector in (self.sun, self.earth):
+            body = rotate(q_phi, torch.einsum("bxy,ny->bnx", matrix, vector))
+            out.append(body)
+            if derivatives:
+                turn = torch.stack([body[..., 1], -body[..., 0], torch.zeros_like(phi)], -1)
+                d_pole = rotate(
+                    q_phi[:, :, None, :], torch.einsum("bxyk,ny->bnkx", d_matrix, vector)
+                )
+                out.append(
+                    torch.cat(
+                        [
+                            d_pole.transpose(2, 3),
+                            (turn * self.seconds[:, None])[..., None],
+                            turn[..., None],
+                        ],
+                        dim=-1,
+                    )
+                )
+        return tuple(out)
 
     def scattering(self, mu0: torch.Tensor, mu: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
         """``S = μ μ0 (1/(μ + μ0) + c)`` on the lit and visible facets (brdf kernel, w = 4π)."""
@@ -207,12 +244,7 @@ class ConvexModel:
             brightness = f * (self.scattering(mu0, mu, c) @ areas[..., None])[..., 0]
             return self._normalise(brightness, None, params)[0], None
 
-        # Spin directions and their derivatives (forward mode, per epoch).
-        def directions(s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-            light, view = self.body_directions(s[None])
-            return light[0], view[0]
-
-        (light, view), (d_light, d_view) = _value_and_jacfwd(directions, spin)
+        light, d_light, view, d_view = self.body_directions(spin, derivatives=True)
         mu0 = (light.to(self.dtype) @ self.normals.T).requires_grad_(True)
         mu = (view.to(self.dtype) @ self.normals.T).requires_grad_(True)
         c_full = c.expand_as(mu0).clone().requires_grad_(True) if lambert_free else c
