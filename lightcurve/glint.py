@@ -121,7 +121,7 @@ def detect_glints(
         One light curve (or several: each ``lightcurve_id`` gets its own baseline).
     window_s : float, optional
         Baseline window (s); flashes must be shorter than about half of it. Default: a
-        quarter of the time span, at least 25 sampling intervals.
+        quarter of the longest light curve, at least 25 sampling intervals.
     false_alarm : float
         Probability that a flash-free light curve of this length shows a detection.
 
@@ -135,8 +135,9 @@ def detect_glints(
     mag = observations.magnitudes
     ids = observations.lightcurve_ids
     cadence = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
-    span = float(times[-1] - times[0]) if len(times) > 1 else 0.0
-    window = max(25.0 * cadence, 0.25 * span) if window_s is None else float(window_s)
+    durations = [np.ptp(times[ids == label]) for label in np.unique(ids)]
+    window = max(25.0 * cadence, 0.25 * float(np.max(durations))) if window_s is None else window_s
+    window = float(window)
     if not window > 0:
         raise ValueError(f"window_s must be positive, got {window_s}")
     baseline, leverage, noise = _baseline(times, mag, ids, window)
