@@ -539,7 +539,11 @@ def error_chart(x: Any, form: str | InertiaForm = "L") -> Chart:
 
 
 def observability_at(
-    x: Any, form: str | InertiaForm = "L", max_order: int | None = None, rtol: float = 1e-9
+    x: Any,
+    form: str | InertiaForm = "L",
+    max_order: int | None = None,
+    rtol: float = 1e-9,
+    patience: int = 2,
 ) -> RankTest:
     """Lie-derivative rank test of the monocular system at a state (seed 000 eqs. 19–23).
 
@@ -556,6 +560,8 @@ def observability_at(
         rank is full or stalls for two orders).
     rtol : float
         Relative singular-value tolerance of the rank decision.
+    patience : int
+        Orders without rank growth before the search stops.
 
     Returns
     -------
@@ -573,6 +579,7 @@ def observability_at(
         chart=error_chart(x, spec),
         scales=scales,
         rtol=rtol,
+        patience=patience,
     )
 
 

@@ -721,8 +721,12 @@ def estimates_table(study: Study) -> pd.DataFrame:
     return pd.DataFrame({key: np.asarray(v).T.ravel() for key, v in cols.items()})
 
 
-def write_figures(study: Study, out: Path) -> list[Path]:
-    """Figures like the paper's figs. 3–6 (run 0) and the Monte Carlo error envelopes."""
+def write_figures(study: Study, out: Path, prefix: str = "") -> list[Path]:
+    """Figures like the paper's figs. 3–6 (run 0) and the Monte Carlo error envelopes.
+
+    Writes ``quaternion.png``, ``rates.png``, ``inertia.png`` and, with a truth,
+    ``errors.png`` into ``out``, each name preceded by ``prefix``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -734,10 +738,10 @@ def write_figures(study: Study, out: Path) -> list[Path]:
     written = []
 
     def save(fig: Any, name: str) -> None:
-        with atomic_path(out / name, suffix=".png") as tmp:
+        with atomic_path(out / (prefix + name), suffix=".png") as tmp:
             fig.savefig(tmp, format="png", dpi=110)
         plt.close(fig)
-        written.append(out / name)
+        written.append(out / (prefix + name))
 
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(7, 7))
     for i, ax in enumerate(axes):
