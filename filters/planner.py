@@ -635,15 +635,17 @@ def greedy_schedule(
     s_max: int | None = None,
     indices: Sequence[int] | None = None,
     measure: str = "trace",
+    exchanges: int = 1,
 ) -> Schedule:
     """Greedy choice of ``count`` observations for the smallest covariance at the last step.
 
     One observation at a time, the step that shrinks the final covariance most given those
     already chosen (before and after it) is added, scored exactly for every candidate at once
     by :func:`final_covariance_reduction` (greedy A- or D-optimal sensor scheduling, e.g.
-    Shamaiah, Banerjee & Vikalo 2010). With ``s_max``, only candidates that leave enough
-    observations to keep every interval (from the start and between observations) at most
-    ``s_max`` qualify.
+    Shamaiah, Banerjee & Vikalo 2010). Exchange passes then take out each observation in
+    turn and put back the best one (a 1-opt local search; the cost never increases). With
+    ``s_max``, only candidates that leave enough observations to keep every interval (from
+    the start and between observations) at most ``s_max`` qualify.
 
     Parameters
     ----------
@@ -656,6 +658,11 @@ def greedy_schedule(
     indices : sequence of int, optional
         States whose final covariance is minimised (default: all).
     measure : {"trace", "logdet"}
+    exchanges : int
+        Most exchange passes (stops earlier when a pass changes nothing). On ten random
+        4-of-12 problems greedy alone is 1.09× the exhaustive optimum on average (worst
+        1.47×), with one pass 1.02× (worst 1.16×, optimal in 8)
+        (``tests/filters/test_planner.py``).
 
     Returns
     -------
@@ -664,12 +671,25 @@ def greedy_schedule(
     length, batch = full.length, full.covariance.shape[0]
     if not 0 < count <= length:
         raise ValueError(f"observation count must be in [1, {length}], got {count}")
+    runs = np.arange(batch)
     taken = np.zeros((batch, length), dtype=bool)
     for chosen in range(count):
         gain = final_covariance_reduction(full, taken, indices, measure)
         allowed = ~taken if s_max is None else _feasible(taken, count - chosen, s_max)
-        best = np.argmax(np.where(allowed, gain, -np.inf), axis=-1)
-        taken[np.arange(batch), best] = True
+        taken[runs, np.argmax(np.where(allowed, gain, -np.inf), axis=-1)] = True
+    for _ in range(exchanges):
+        changed = False
+        for rank in range(count):
+            # Take out each run's rank-th observation and put back the best one.
+            out = np.flatnonzero(taken.ravel())[rank::count] - runs * length
+            taken[runs, out] = False
+            gain = final_covariance_reduction(full, taken, indices, measure)
+            allowed = ~taken if s_max is None else _feasible(taken, 1, s_max)
+            back = np.argmax(np.where(allowed, gain, -np.inf), axis=-1)
+            taken[runs, back] = True
+            changed |= bool(np.any(back != out))
+        if not changed:
+            break
     return Schedule(taken, propagate_schedule(full, taken))
 
 

@@ -22,7 +22,7 @@ apply and epochs are chosen with the budgeted posterior criterion
 Dark epochs (no lit facet visible, infinite magnitude) carry no information.
 
 Dynamics: torque-free motion propagated with the attitude core's RK4
-(:func:`~filters.attitude.rk4_step`) in ``substeps`` per candidate interval; the error-state
+(:func:`~filters.attitude.rk4_step`) in substeps of at most ``max_substep``; the error-state
 transition and process noise over a substep of length ``h`` come from the Van Loan matrix
 (Van Loan 1978)
 
@@ -107,8 +107,10 @@ class PhotometricPlanningModel:
         Square root of the angular-acceleration noise spectral density (rad s⁻³ᐟ²).
     estimate_inertia : bool
         Error state with the five inertia parameters (11 states) or without (6).
-    substeps : int
-        RK4 substeps (and transition-matrix factors) per candidate interval.
+    max_substep : float
+        Longest RK4 substep (and transition-matrix factor) within a candidate interval (s).
+        ``Φ`` converges as its square: relative error 2.3e-3 at 13° of rotation per
+        substep, 5.8e-4 at 6.5°.
     """
 
     renderer: Renderer
@@ -118,7 +120,7 @@ class PhotometricPlanningModel:
     sigma_mag: np.ndarray
     rate_noise: float = 0.0
     estimate_inertia: bool = False
-    substeps: int = 4
+    max_substep: float = 2.5
 
     def __post_init__(self) -> None:
         k = len(self.times)
@@ -128,8 +130,8 @@ class PhotometricPlanningModel:
             raise ValueError(f"sun and observer vectors must have shape ({k}, 3)")
         if self.sigma_mag.shape != (k,) or not np.all(self.sigma_mag > 0):
             raise ValueError(f"sigma_mag must be {k} positive magnitudes")
-        if self.substeps < 1:
-            raise ValueError(f"substeps must be >= 1, got {self.substeps}")
+        if not self.max_substep > 0:
+            raise ValueError(f"max_substep must be positive, got {self.max_substep}")
 
     @classmethod
     def from_observations(
@@ -153,7 +155,7 @@ class PhotometricPlanningModel:
         shadows : str
             Renderer shadow mode.
         **options
-            ``rate_noise``, ``estimate_inertia``, ``substeps``.
+            ``rate_noise``, ``estimate_inertia``, ``max_substep``.
         """
         if sigma_mag is None:
             if not observations.has_magnitudes:
@@ -193,12 +195,13 @@ class PhotometricPlanningModel:
 
     # ------------------------------------------------------------------ PlanningModel
     def predict(self, x: np.ndarray, step: int) -> np.ndarray:
-        """Mean at ``step + 1`` (RK4, ``substeps`` steps)."""
+        """Mean at ``step + 1`` (RK4 substeps of at most ``max_substep``)."""
         x = np.asarray(x, dtype=float)
-        h = (self.times[step + 1] - self.times[step]) / self.substeps
+        count = int(self._substeps(np.array([step]))[0])
+        h = (self.times[step + 1] - self.times[step]) / count
         derivative = torque_free_derivative(inertia_from_normalized(x[..., 7:]))
         qw = x[..., :7]
-        for _ in range(self.substeps):
+        for _ in range(count):
             qw = rk4_step(derivative, qw, h)
         return np.concatenate([qw, x[..., 7:]], axis=-1)
 
@@ -206,8 +209,24 @@ class PhotometricPlanningModel:
         """Transition ``Φ`` and process noise ``Q`` from ``step`` to ``step + 1``, ``(N, n, n)``."""
         x = np.asarray(x, dtype=float)
         step = np.broadcast_to(np.asarray(step), x.shape[:1])
+        counts = self._substeps(step)
+        phi = np.empty((len(x), self.n_states, self.n_states))
+        q = np.empty_like(phi)
+        for count in np.unique(counts):
+            rows = counts == count
+            h = (self.times[step[rows] + 1] - self.times[step[rows]]) / count
+            phi[rows], q[rows] = self._transition(x[rows], h, int(count))
+        return phi, q
+
+    def _substeps(self, step: np.ndarray) -> np.ndarray:
+        """Number of substeps of each candidate interval."""
+        dt = self.times[step + 1] - self.times[step]
+        return np.maximum(np.ceil(dt / self.max_substep - 1e-9), 1).astype(int)
+
+    def _transition(self, x: np.ndarray, h: np.ndarray, count: int) -> tuple[np.ndarray, ...]:
+        """Product of ``count`` Van Loan substeps of lengths ``h`` ``(N,)`` along the mean."""
         n = self.n_states
-        h = torch.as_tensor((self.times[step + 1] - self.times[step]) / self.substeps)
+        h_t = torch.as_tensor(h)[:, None, None]
         derivative = torque_free_derivative(inertia_from_normalized(x[..., 7:]))
         noise = torch.zeros(n, n, dtype=torch.float64)
         noise[3:6, 3:6] = self.rate_noise**2 * torch.eye(3, dtype=torch.float64)
@@ -215,22 +234,23 @@ class PhotometricPlanningModel:
         q = torch.zeros(len(x), n, n, dtype=torch.float64)
         qw = x[..., :7]
         c_start = self._system_matrix(qw[..., 4:], x[..., 7:])
-        for _ in range(self.substeps):
-            qw = rk4_step(derivative, qw, h.numpy()[:, None])
+        for _ in range(count):
+            qw = rk4_step(derivative, qw, h[:, None])
             c_end = self._system_matrix(qw[..., 4:], x[..., 7:])
             c = 0.5 * (c_start + c_end)
-            zero = torch.zeros_like(c)
             van_loan = torch.cat(
-                [torch.cat([-c, noise.expand_as(c)], -1), torch.cat([zero, c.mT], -1)], -2
+                [
+                    torch.cat([-c, noise.expand_as(c)], -1),
+                    torch.cat([torch.zeros_like(c), c.mT], -1),
+                ],
+                -2,
             )
-            e = transition_matrix(van_loan * h[:, None, None], 1.0)
+            e = transition_matrix(van_loan * h_t, 1.0)
             phi_sub = e[:, n:, n:].mT
-            q_sub = phi_sub @ e[:, :n, n:]
             phi = phi_sub @ phi
-            q = phi_sub @ q @ phi_sub.mT + q_sub
+            q = phi_sub @ q @ phi_sub.mT + phi_sub @ e[:, :n, n:]
             c_start = c_end
-        q = 0.5 * (q + q.mT)
-        return phi.numpy(), q.numpy()
+        return phi.numpy(), (0.5 * (q + q.mT)).numpy()
 
     def information(self, x: np.ndarray, step: Any) -> np.ndarray:
         """Fisher information ``F = hᵀ h / σ²`` ``(N, n, n)`` of a magnitude at ``step``."""
@@ -313,9 +333,9 @@ class ScheduleComparison:
     budget : int
         Epochs observed among the candidate steps ``1 … L``.
     taken : dict of str to (B, L) bool arrays
-        ``"planned"`` (:func:`~filters.planner.greedy_schedule`), ``"rollout"`` (the sequential
-        :class:`~filters.planner.PosteriorRollout` planner), ``"uniform"`` and
-        ``"largest_information"`` (:func:`largest_information_steps`).
+        ``"planned"`` (:func:`~filters.planner.greedy_schedule`), ``"uniform"``,
+        ``"largest_information"`` (:func:`largest_information_steps`) and, if asked,
+        ``"rollout"`` (the sequential :class:`~filters.planner.PosteriorRollout` planner).
     covariances : dict of str to (L, B, n, n) arrays
         Covariance after each step under each schedule (the same recursion for all).
     forecast : Forecast
@@ -346,6 +366,7 @@ def compare_schedules(
     indices: Sequence[int] = ATTITUDE,
     measure: str = "trace",
     ahead: Forecast | None = None,
+    rollout: bool = False,
 ) -> ScheduleComparison:
     """Plan ``budget`` epochs for the smallest final attitude covariance; compare to uniform.
 
@@ -369,6 +390,8 @@ def compare_schedules(
     measure : {"trace", "logdet"}
     ahead : Forecast, optional
         A forecast already made from ``x0``, ``p0`` (reused across budgets).
+    rollout : bool
+        Also plan with the sequential rollout (``O(budget L²)``: slow for long nights).
 
     Returns
     -------
@@ -379,13 +402,14 @@ def compare_schedules(
         p0 = np.broadcast_to(np.asarray(p0, dtype=float), (len(x0), model.n_states, model.n_states))
         ahead = forecast(model, x0, p0, 0, model.n_epochs - 1)
     batch, length = ahead.covariance.shape[0], ahead.length
-    planned = plan_final_covariance(ahead, budget, s_max, indices, measure)
-    rollout = plan_final_covariance(ahead, budget, s_max, indices, measure, "rollout")
     taken = {
-        "planned": planned.taken,
-        "rollout": rollout.taken,
+        "planned": plan_final_covariance(ahead, budget, s_max, indices, measure).taken,
         "uniform": np.broadcast_to(uniform_steps(length, budget), (batch, length)),
         "largest_information": largest_information_steps(ahead, budget),
     }
+    if rollout:
+        taken["rollout"] = plan_final_covariance(
+            ahead, budget, s_max, indices, measure, "rollout"
+        ).taken
     covariances = {name: propagate_schedule(ahead, pattern) for name, pattern in taken.items()}
     return ScheduleComparison(budget, taken, covariances, ahead)
