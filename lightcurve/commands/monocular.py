@@ -166,10 +166,16 @@ def _read_pixels(table: TomlTable) -> PixelSetup:
         )
     cam.check_unknown()
     target = table.table("target")
+    import shapes
+
+    library = shapes.get_library()
+    shape = target.string("shape")
+    if shape not in library:
+        raise target.error("shape", f"no library shape {shape!r}; known: {library.names()}")
     radius = target.number("radius_m", 1.0, positive=True)
     setup = PixelSetup(
         camera,
-        target.string("shape"),
+        shape,
         radius,
         target.number("range_m", positive=True),
         table.number("pixel_sigma", minimum=0.0),
@@ -350,10 +356,7 @@ def _library_target(setup: PixelSetup) -> tuple[np.ndarray, np.ndarray, Any]:
     import shapes
     from shapes.raycast import Occluder
 
-    try:
-        model = shapes.get_library().load(setup.shape)
-    except (KeyError, ValueError, OSError) as exc:
-        raise ScenarioError(f"[measurement.target] shape: {exc}") from None
+    model = shapes.get_library().load(setup.shape)
     vertices = np.asarray(model.vertices, dtype=float) - np.asarray(model.center_of_mass)
     vertices *= setup.radius_m / np.max(np.linalg.norm(vertices, axis=1))
     normals = np.asarray(model.mesh.vertex_normals, dtype=float)

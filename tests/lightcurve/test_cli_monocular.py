@@ -139,3 +139,22 @@ def test_bad_measurement_rows_name_line_and_column(tmp_path):
     csv.write_text("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n")
     with pytest.raises(ScenarioError, match="missing column"):
         read_measurements(csv)
+
+
+def test_pixel_mode_runs_end_to_end(tmp_path):
+    scenario = short_copy(tmp_path, "seed000_nutation_pixels.toml", 30.0)
+    out = tmp_path / "pix"
+    assert main(["monocular", str(scenario), "--out", str(out), "--no-plots"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    pixels = summary["pixels"]
+    assert pixels["tracked_points_min"] >= 20 and pixels["failed_frames"] == 0
+    assert pixels["pair_error_deg_max"] < 0.2
+    assert summary["attitude_error_deg"] < 0.5
+
+
+def test_unknown_library_shape_names_the_field(tmp_path, capsys):
+    text = (SCENARIOS / "seed000_nutation_pixels.toml").read_text()
+    path = tmp_path / "shape.toml"
+    path.write_text(text.replace('shape = "bennu"', 'shape = "benu"'))
+    assert main(["monocular", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "[measurement.target] shape: no library shape 'benu'" in capsys.readouterr().err
