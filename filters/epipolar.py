@@ -593,5 +593,5 @@ def attitude_sequence(
 
 def _compose(q_reference: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """``q_k`` with ``A(q_k) = A(q_j) R_Δᵀ`` (``R_k = R_Δ R_j`` and ``A(q) = Rᵀ``)."""
-    r = quaternion_from_matrix(rotation.T[None])[0]
+    r = quaternion_from_matrix(rotation.T)
     return np.asarray(quaternion_multiply(q_reference, r))

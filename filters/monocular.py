@@ -40,7 +40,6 @@ Example
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -66,10 +65,11 @@ from filters.attitude import (
     rotation_vector_to_quaternion,
     tanh_from_inertia,
     torque_free_derivative,
+    transition_matrix,
 )
 from filters.attitude._array import as_arrays
 from filters.attitude.kinematics import cross_matrix
-from filters.kalman import mahalanobis_squared
+from filters.kalman import joseph_update, mahalanobis_squared
 from filters.observability import Chart, RankTest, observability_gramian, observability_rank
 
 __all__ = [
@@ -84,7 +84,6 @@ __all__ = [
     "reference_frame_truth",
     "state_derivative",
     "trajectory_information",
-    "transition_series",
 ]
 
 
@@ -222,42 +221,6 @@ def error_state_matrix(omega: Any, p: Any, form: str | InertiaForm = "L") -> Any
     return xp.concat([top, middle, bottom], axis=-2)
 
 
-def transition_series(c: np.ndarray, dt: float, terms: int = 8) -> np.ndarray:
-    """``Φ = exp(C Δt)`` by scaling and squaring of the Taylor series, batched.
-
-    The argument is halved until its 1-norm is at most ½, the series is summed to ``terms``
-    terms (truncation below ``2⁻ᵗᵉʳᵐˢ/terms!`` relative) and squared back. Orders of magnitude
-    faster than a batched ``scipy.linalg.expm`` on many small matrices; agrees with
-    :func:`filters.attitude.transition_matrix` to 1e-13 (tested).
-
-    Parameters
-    ----------
-    c : (..., n, n) numpy.ndarray
-        System matrices.
-    dt : float
-        Step (s).
-    terms : int
-        Series terms.
-
-    Returns
-    -------
-    (..., n, n) numpy.ndarray
-    """
-    a = np.asarray(c, dtype=float) * dt
-    norm = float(np.max(np.sum(np.abs(a), axis=-2))) if a.size else 0.0
-    squarings = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
-    a = a / 2.0**squarings
-    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
-    result = eye.copy()
-    term = eye
-    for j in range(1, terms + 1):
-        term = term @ a / j
-        result = result + term
-    for _ in range(squarings):
-        result = result @ result
-    return result
-
-
 @dataclass
 class FilterHistory:
     """Output of :meth:`MonocularEKF.batch_filter`.
@@ -347,7 +310,7 @@ class MonocularEKF:
         if dt <= 0:
             raise ValueError(f"time step must be positive, got {dt}")
         c = error_state_matrix(self.x[..., 4:7], self.x[..., 7:], self.form)
-        phi = transition_series(c, dt)
+        phi = transition_matrix(c, dt)
         # ṗ = 0, so the inertia is fixed over the step: propagate [q, ω] with J⁻¹ computed once.
         f = torque_free_derivative(self.form.tensor(self.x[..., 7:]))
         x = self.x[..., :7]
@@ -395,7 +358,7 @@ class MonocularEKF:
         # K = P Hᵀ S⁻¹ with H = [I 0]: P Hᵀ is the first three columns of P.
         gain = np.swapaxes(np.linalg.solve(s, np.swapaxes(self.P[..., :, :3], -1, -2)), -1, -2)
         dx = (gain @ nu[..., None])[..., 0]
-        p = _joseph(self.P, gain, self.H, self.R)
+        p = joseph_update(self.P, gain, self.H, self.R)
         dq = np.concatenate([dx[..., :3], np.ones_like(dx[..., :1])], axis=-1)
         q = quaternion_normalize(quaternion_multiply(dq, self.x[..., :4]))
         x = np.concatenate([q, self.x[..., 4:] + dx[..., 3:]], axis=-1)
@@ -437,13 +400,6 @@ class MonocularEKF:
         return FilterHistory(
             t, np.stack(states), np.stack(covs), np.stack(innovations), np.stack(nis)
         )
-
-
-def _joseph(p: np.ndarray, gain: np.ndarray, h: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Batched Joseph update ``(I − K H) P (I − K H)ᵀ + K R Kᵀ`` (cf. ``filters.kalman``)."""
-    i_kh = np.eye(p.shape[-1]) - gain @ h
-    out = i_kh @ p @ np.swapaxes(i_kh, -1, -2) + gain @ r @ np.swapaxes(gain, -1, -2)
-    return 0.5 * (out + np.swapaxes(out, -1, -2))
 
 
 def reference_frame_truth(

@@ -15,6 +15,7 @@ torch autograd in ``tests/filters/attitude``.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -183,25 +184,43 @@ def state_jacobian(state: Any, inertia: Any) -> Any:
     return xp.concat([top, bottom], axis=-2)
 
 
-def transition_matrix(matrix: Any, dt: float) -> Any:
+def transition_matrix(matrix: Any, dt: float, terms: int = 12) -> Any:
     """Discrete state-transition matrix ``Φ = exp(C Δt)`` (seed 000 eq. 32, exact form).
+
+    numpy: scaling and squaring of the Taylor series, batched — the argument is halved until
+    its 1-norm is at most ½, ``terms`` terms are summed (truncation ≈ 2⁻¹³/13! ≈ 1e-14
+    relative with the default) and the result squared back. Orders of magnitude faster than
+    ``scipy.linalg.expm`` on many small matrices and equal to it to 1e-13 (tested).
+    torch: ``torch.linalg.matrix_exp`` (differentiable, any device).
 
     Parameters
     ----------
     matrix : (..., n, n) array
-        Continuous-time system matrix ``C``.
+        Continuous-time system matrices ``C``.
     dt : float
         Time step (s).
+    terms : int
+        Taylor terms of the numpy path.
 
     Returns
     -------
     (..., n, n) array
     """
     _, (c,) = as_arrays(matrix)
-    if isinstance(c, np.ndarray):
-        from scipy.linalg import expm
+    if not isinstance(c, np.ndarray):
+        import torch
 
-        return expm(c * dt)
-    import torch
-
-    return torch.linalg.matrix_exp(c * dt)
+        return torch.linalg.matrix_exp(c * dt)
+    a = c * dt
+    norm = float(np.max(np.sum(np.abs(a), axis=-2))) if a.size else 0.0
+    squarings = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    a = a / 2.0**squarings
+    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
+    result = eye.copy()
+    term = eye
+    for j in range(1, terms + 1):
+        term = term @ a / j
+        result = result + term
+    for _ in range(squarings):
+        result = result @ result
+    return result

@@ -225,7 +225,7 @@ def quaternion_from_matrix(matrix: Any) -> Any:
     )
     pivots = xp.stack([a11, a22, a33, trace], axis=-1)
     best = xp.argmax(pivots, axis=-1)
-    mask = xp.astype(best[..., None] == xp.arange(4, device=_device(a))[None, :], a.dtype)
+    mask = xp.astype(best[..., None] == xp.arange(4, device=_device(a)), a.dtype)
     q = xp.sum(mask[..., :, None] * candidates, axis=-2)
     return quaternion_canonical(quaternion_normalize(q))
 

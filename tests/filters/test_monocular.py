@@ -22,7 +22,6 @@ from filters.attitude import (
     quaternion_multiply,
     random_quaternion,
     tanh_from_inertia,
-    transition_matrix,
 )
 from filters.attitude import (
     error_state_matrix as core_error_state_matrix,
@@ -35,7 +34,6 @@ from filters.monocular import (
     perturb_attitudes,
     reference_frame_truth,
     state_derivative,
-    transition_series,
 )
 from lightcurve.commands.monocular import (
     convergence,
@@ -101,14 +99,6 @@ def test_state_derivative_is_the_core_dynamics_in_numpy_and_torch():
     assert np.allclose(f(x)[:7], expected, atol=1e-15)
     assert np.all(f(x)[7:] == 0)
     assert np.allclose(f(torch.tensor(x)).numpy(), f(x), atol=1e-15)
-
-
-@pytest.mark.parametrize("scale", [0.05, 0.7, 6.0])
-def test_transition_series_matches_scipy_expm(scale):
-    rng = np.random.default_rng(3)
-    c = scale * rng.normal(size=(4, 11, 11))
-    ref = np.stack([transition_matrix(ci, 1.3) for ci in c])
-    assert np.max(np.abs(transition_series(c, 1.3) - ref)) < 1e-12 * max(1.0, np.abs(ref).max())
 
 
 def test_update_is_the_shared_joseph_update_and_batches_like_a_loop():

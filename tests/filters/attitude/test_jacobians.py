@@ -94,3 +94,14 @@ def test_batched_and_torch_jacobians():
     np.testing.assert_allclose(
         transition_matrix(c_t, 0.5).numpy(), transition_matrix(c, 0.5), atol=1e-12
     )
+
+
+def test_transition_matrix_series_equals_scipy_expm():
+    from scipy.linalg import expm
+
+    rng = np.random.default_rng(34)
+    for scale in (1e-3, 0.3, 5.0, 40.0):
+        c = rng.normal(scale=scale, size=(6, 11, 11))
+        ours = transition_matrix(c, 0.7)
+        ref = np.stack([expm(ci * 0.7) for ci in c])
+        assert np.max(np.abs(ours - ref)) < 1e-13 * max(1.0, np.abs(ref).max())

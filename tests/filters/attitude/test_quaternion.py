@@ -204,3 +204,8 @@ def test_torch_matches_numpy_and_is_differentiable():
 def test_normalize_rejects_zero_quaternion():
     with pytest.raises(ValueError, match="zero or non-finite"):
         quaternion_normalize(np.zeros(4))
+
+
+def test_single_matrix_gives_single_quaternion():
+    q = random_quaternion(rng=35)
+    assert quaternion_from_matrix(attitude_matrix(q)).shape == (4,)
