@@ -25,6 +25,7 @@ information criterion ``χ² + p ln N``.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -63,20 +64,19 @@ class PeriodResult:
     chi2 : float
         χ² of the best model.
     aliases : list of dict
-        ``period_h``, ``chi2``, ``delta_chi2``, ``delta_bic``, ``order``, ``kind``
-        (``"half"``, ``"double"``, ``"daily+k"``, ``"peak"``) and ``harmonic`` (the
-        dominant harmonic of that fit: 2 for a double-peaked curve), sorted by χ².
+        ``period_h``, ``chi2``, ``delta_chi2``, ``delta_bic``, ``order`` and ``kind``
+        (``"half"``, ``"double"``, ``"daily+k"``, ``"peak"``), sorted by χ².
     periods_h, chi2_curve : (n,) float
         The periodogram of the chosen order.
     lomb_scargle_h : float
         Lomb–Scargle best period (first look).
     sidereal : bool
         Whether the scan was PAB-corrected (sidereal).
-    harmonic : int
-        Dominant harmonic of the chosen fit (maxima per cycle).
     double_peaked_h : float
-        The candidate among the chosen period, its half and its double whose fit has two
-        maxima per cycle — the usual reading for asteroids and rocket bodies (NaN if none).
+        The shortest of P/2, P and 2P that fits within 10 % of the best χ² while its
+        half-period fits clearly worse (ΔBIC > 10): the period whose two half-cycles
+        differ, the usual reading of an elongated body's double-peaked light curve (NaN if
+        none).
     """
 
     period_h: float
@@ -89,7 +89,6 @@ class PeriodResult:
     chi2_curve: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lomb_scargle_h: float = float("nan")
     sidereal: bool = False
-    harmonic: int = 0
     double_peaked_h: float = float("nan")
 
     def summary(self) -> dict:
@@ -104,7 +103,6 @@ class PeriodResult:
             "n_points": self.n_points,
             "lomb_scargle_period_h": self.lomb_scargle_h,
             "sidereal": self.sidereal,
-            "dominant_harmonic": self.harmonic,
             "double_peaked_period_h": None
             if math.isnan(self.double_peaked_h)
             else self.double_peaked_h,
@@ -259,13 +257,6 @@ def fourier_chi2(
     )
 
 
-def dominant_harmonic(coefficients: np.ndarray) -> int:
-    """Harmonic k with the largest amplitude ``√(a_k² + b_k²)`` (2 = double-peaked)."""
-    order = len(coefficients) // 2
-    amplitude = np.hypot(coefficients[:order], coefficients[order:])
-    return int(np.argmax(amplitude)) + 1
-
-
 def lomb_scargle_period(
     times: np.ndarray, values: np.ndarray, sigma: np.ndarray, curve, frequencies
 ) -> float:
@@ -366,9 +357,6 @@ def period_search(
             [design.solve(freqs[i : i + 256], order)[1] for i in range(0, len(freqs), 256)]
         )
 
-    def harmonic(f: float, order: int) -> int:
-        return dominant_harmonic(design.solve(np.array([f]), order)[0][0])
-
     n_curves = len(np.unique(curve))
     n = len(times)
 
@@ -429,24 +417,24 @@ def period_search(
         if kind == kind_best:
             continue
         label = kind if kind.startswith("daily") else _ratio_name(f0 / f)
-        aliases.append(_alias(f, cc, c0, b - b0, order, label, harmonic(f, order)))
+        aliases.append(_alias(f, cc, c0, b - b0, order, label))
     for index in peaks:
         f = frequencies[index]
         known = [1 / (a["period_h"] * 3600.0) for a in aliases] + [f0]
         if all(abs(f - g) > 2 * step for g in known):
-            aliases.append(
-                _alias(
-                    f, c[index], c0, bic(c[index], order0) - b0, order0, "peak", harmonic(f, order0)
-                )
-            )
+            aliases.append(_alias(f, c[index], c0, bic(c[index], order0) - b0, order0, "peak"))
         if sum(a["kind"] == "peak" for a in aliases) >= n_peaks:
             break
     aliases.sort(key=lambda a: a["chi2"])
-    peaks_per_cycle = harmonic(f0, order0)
-    double_peaked = [1.0 / f0 / 3600.0] if peaks_per_cycle == 2 else []
-    double_peaked += [
-        a["period_h"] for a in aliases if a["kind"] in ("half", "double") and a["harmonic"] == 2
-    ]
+    # The double-peaked reading: the shortest of P/2, P, 2P that fits within 10 % of the
+    # best χ² while its own half fits clearly worse (ΔBIC > 10).
+    ladder = [best_order_at(f0 * factor) for factor in (4.0, 2.0)]
+    ladder += [entries[kind_best], best_order_at(f0 * 0.5)]
+    double_peaked = float("nan")
+    for shorter, candidate in itertools.pairwise(ladder):
+        if shorter[0] - candidate[0] > 10.0 and candidate[3] <= 1.1 * c0:
+            double_peaked = 1.0 / candidate[1] / 3600.0
+            break
     ls = lomb_scargle_period(times, mags, sigma, curve, frequencies) / 3600.0
     return PeriodResult(
         period_h=period_h,
@@ -459,8 +447,7 @@ def period_search(
         chi2_curve=c,
         lomb_scargle_h=ls,
         sidereal=pole is not None,
-        harmonic=peaks_per_cycle,
-        double_peaked_h=double_peaked[0] if double_peaked else float("nan"),
+        double_peaked_h=double_peaked,
     )
 
 
@@ -473,7 +460,7 @@ def _ratio_name(ratio: float) -> str:
 
 
 def _alias(
-    f: float, chi2: float, chi2_best: float, delta_bic: float, order: int, kind: str, harmonic: int
+    f: float, chi2: float, chi2_best: float, delta_bic: float, order: int, kind: str
 ) -> dict:
     return {
         "period_h": 1.0 / f / 3600.0,
@@ -482,5 +469,4 @@ def _alias(
         "delta_bic": float(delta_bic),
         "order": int(order),
         "kind": kind,
-        "harmonic": int(harmonic),
     }
