@@ -93,9 +93,9 @@ def test_ariadne_apparitions_right_alias_or_both_reported(curves, synodic_h):
 
 
 def test_tumbling_rocket_body_period_within_one_percent():
-    """End-over-end tumble (flat spin about a transverse axis), 30 min at 1 s, 0.02 mag."""
+    """End-over-end tumble (flat spin about a transverse axis), 20 min at 2 s, 0.02 mag."""
     period_s = 90.0
-    t = np.arange(0.0, 1800.0, 1.0)
+    t = np.arange(0.0, 1200.0, 2.0)
     n = len(t)
     # A GEO-like geometry: fixed Sun, observer 36 000 km away drifting slowly.
     angle = 2 * np.pi * t / 86164.0
@@ -113,7 +113,7 @@ def test_tumbling_rocket_body_period_within_one_percent():
     sim = simulate(
         geometry, body, q0, [2 * np.pi / period_s, 0.0, 0.0], noise=GaussianNoise(0.02), seed=4
     )
-    result = period_search(sim, (20 / 3600, 600 / 3600))
+    result = period_search(sim, (20 / 3600, 600 / 3600), orders=(2, 4))
     assert abs(result.period_h * 3600 / period_s - 1) < 0.01
     assert result.sigma_h * 3600 < 0.5
 
