@@ -31,6 +31,7 @@ import importlib.util
 import logging
 import os
 import pkgutil
+import re
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -116,6 +117,24 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d)")
+
+
+def _attach_negative_values(argv: list[str]) -> list[str]:
+    """``--q0 -0.3,0.5,…`` → ``--q0=-0.3,0.5,…``: argparse would take the value for an option.
+
+    A token that starts like a negative number and follows a long option without ``=`` is
+    that option's value.
+    """
+    out: list[str] = []
+    for token in argv:
+        if out and _NEGATIVE_VALUE.match(token) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def _invoked_command(argv: Sequence[str]) -> str | None:
     """The first argument that is not an option: the command name."""
     return next((arg for arg in argv if not arg.startswith("-")), None)
@@ -123,7 +142,7 @@ def _invoked_command(argv: Sequence[str]) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``lightcurve`` console script."""
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = _attach_negative_values(list(sys.argv[1:] if argv is None else argv))
     command = _invoked_command(argv)
     parser = build_parser(load=[command] if command else [])
     args = parser.parse_args(argv)

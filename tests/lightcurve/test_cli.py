@@ -68,3 +68,23 @@ def test_bad_vector_argument(capsys):
     except SystemExit as exc:
         assert exc.code == 2
     assert "expected 3 comma-separated numbers" in capsys.readouterr().err
+
+
+def test_negative_vector_values_need_no_equals_sign(tmp_path):
+    out = tmp_path / "state.csv"
+    argv = [
+        "propagate",
+        "--omega0",
+        "-5,2.3,-3.5",
+        "--q0",
+        "-0.6,0,0,0.8",
+        "--duration",
+        "60",
+        "--step",
+        "60",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    table = pd.read_csv(out)
+    assert table["wx_deg_s"][0] == -5.0 and table["q1"][0] == -0.6
