@@ -35,7 +35,7 @@ from filters.stereo_montecarlo import StereoScenario, run_monte_carlo
 
 N = mean_motion(6878.137e3)
 M_CAM = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
-PAIR = StereoCamera(PinholeCamera.from_fov(40.0, 2048), 1.0)
+PAIR = StereoCamera(PinholeCamera.from_fov(60.0, 2048), 1.0)
 COORDS = np.array(
     [
         [0.5, 0.5, 0.5],
