@@ -35,8 +35,9 @@ error dynamics (seed 004 eqs. 26–36) are
 
 with ``M = ∂ω̇/∂ω`` and ``N = ∂ω̇/∂k`` from the attitude core. The measurement Jacobian is
 ``∂p_i/∂δθ = −Âᵀ [s_i×]``, ``∂p_i/∂ρ = M`` times the projection Jacobian (seed 004 eq. 38).
-Covariance updates use the Joseph form. :class:`StereoEKF` runs a *batch* of independent
-filters at once (leading array dimensions), which is how the Monte Carlo study is vectorised.
+Covariance updates use the Joseph form (:mod:`filters.kalman`). :class:`StereoEKF` runs a
+*batch* of independent filters at once (leading array dimensions), which is how the Monte
+Carlo study is vectorised.
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ from filters.attitude import (
 )
 from filters.camera import PinholeCamera
 from filters.hill import cw_process_noise, cw_transition
-from filters.kalman import mahalanobis_squared
+from filters.kalman import joseph_update, kalman_gain, mahalanobis_squared
 
 __all__ = [
     "STATE_SIZE",
@@ -440,14 +441,10 @@ class StereoEKF:
         z = np.asarray(pixels, dtype=float)
         predicted, h = self.predicted_measurement()
         nu = (z - predicted).reshape(*predicted.shape[:-2], -1)
-        r_var = self.pixel_sigma**2
-        ph_t = self.P @ np.swapaxes(h, -1, -2)
-        s = h @ ph_t + r_var * np.eye(h.shape[-2])
-        gain = np.swapaxes(np.linalg.solve(s, np.swapaxes(ph_t, -1, -2)), -1, -2)
+        r = self.pixel_sigma**2 * np.eye(h.shape[-2])
+        gain, s = kalman_gain(self.P, h, r)
         dx = (gain @ nu[..., None])[..., 0]
-        i_kh = np.eye(STATE_SIZE) - gain @ h
-        p = i_kh @ self.P @ np.swapaxes(i_kh, -1, -2) + r_var * gain @ np.swapaxes(gain, -1, -2)
-        self.P = 0.5 * (p + np.swapaxes(p, -1, -2))
+        self.P = joseph_update(self.P, gain, h, r)
         self.innovation, self.innovation_covariance = nu, s
 
         self.q = quaternion_multiply(rotation_vector_to_quaternion(dx[..., _ATT]), self.q)
