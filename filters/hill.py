@@ -25,6 +25,7 @@ from filters.kalman import discrete_process_noise
 
 __all__ = [
     "EARTH_MU",
+    "EARTH_RADIUS",
     "cw_input_matrix",
     "cw_matrix",
     "cw_process_noise",
@@ -34,6 +35,9 @@ __all__ = [
 
 EARTH_MU = 3.986004418e14
 """Earth's gravitational parameter (m³/s², WGS-84 / EGM-96)."""
+
+EARTH_RADIUS = 6378.137e3
+"""Earth's equatorial radius (m, WGS-84), for orbit radii from altitudes."""
 
 
 def mean_motion(semi_major_axis: float, mu: float = EARTH_MU) -> float:

@@ -17,11 +17,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from filters.hill import EARTH_MU, mean_motion
+from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
 from filters.relnav import ApproachScenario, PositionSensor, simulate_approach
 from lightcurve.atomic import atomic_write_json, atomic_write_table
-from lightcurve.commands._scenario_toml import ScenarioError, load_toml
-from lightcurve.commands.stereo import EARTH_RADIUS_M
+from lightcurve.scenarios import ScenarioError, load_toml
 
 NAME = "relnav"
 HELP = "multi-mode relative navigation: IMU + lidar/GNSS fixes, Huber M-estimation (seed 003)"
@@ -79,7 +78,7 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
 
     altitude = orbit.number("altitude_km", positive=True)
     fields = {
-        "mean_motion": mean_motion(EARTH_RADIUS_M + 1e3 * altitude, EARTH_MU),
+        "mean_motion": mean_motion(EARTH_RADIUS + 1e3 * altitude, EARTH_MU),
         "start": traj.array("start_position_m", (3,)),
         "hold": traj.array("hold_position_m", (3,)),
         "approach_duration": traj.number("approach_duration_s", positive=True),

@@ -20,17 +20,15 @@ from tqdm import tqdm
 
 from filters.attitude import euler321_to_quaternion
 from filters.camera import PinholeCamera
-from filters.hill import EARTH_MU, mean_motion
+from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
 from filters.stereo import StereoCamera
 from filters.stereo_montecarlo import StereoScenario, run_monte_carlo
 from lightcurve.atomic import atomic_write_json, atomic_write_table
-from lightcurve.commands._scenario_toml import ScenarioError, load_toml
+from lightcurve.scenarios import ScenarioError, load_toml
 
 NAME = "stereo"
 HELP = "Monte Carlo of the stereo relative-state and inertia EKF (seed 004)"
 ORDER = 62
-
-EARTH_RADIUS_M = 6378.137e3
 
 
 def load_stereo_scenario(path: str | Path) -> StereoScenario:
@@ -54,7 +52,7 @@ def load_stereo_scenario(path: str | Path) -> StereoScenario:
     orbit, cam, target = root.table("orbit"), root.table("camera"), root.table("target")
     noise, sim, filt = root.table("noise"), root.table("simulation"), root.table("filter")
 
-    n = mean_motion(EARTH_RADIUS_M + 1e3 * orbit.number("altitude_km", positive=True), EARTH_MU)
+    n = mean_motion(EARTH_RADIUS + 1e3 * orbit.number("altitude_km", positive=True), EARTH_MU)
     width = cam.integer("image_width_px", minimum=1)
     height = cam.integer("image_height_px", minimum=1)
     fov = cam.number("field_of_view_deg", positive=True)
