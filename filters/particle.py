@@ -1,0 +1,571 @@
+"""Particle filter for attitude, rates, optional inertia and a discrete shape index.
+
+Each particle carries ``x = (q, ω[, k][, s])``: an attitude (inertial → body), body rates
+(rad/s), optionally the two tanh inertia parameters ``k`` (seed 004) and a shape index
+``s`` (joint attitude–shape inversion over a library). All particles are propagated
+(torque-free RK4) and rendered in one batched torch call per shape, and the filter works
+in log-weights:
+
+* **Update** (SIR, Gordon, Salmond & Smith 1993): ``log w_i += β ℓ_i`` with the
+  measurement log-likelihood ``ℓ_i`` — Gaussian, ``−½ ν_i²/R``, or Student-t with ``ν``
+  degrees of freedom, ``−(ν + 1)/2 · ln(1 + ν_i²/(ν R))``, which tolerates outliers.
+* **Tempering** (adaptive likelihood annealing, Neal 2001; Del Moral, Doucet & Jasra
+  2006): when the whole likelihood would drop the effective sample size
+  ``ESS = 1/Σ w_i²`` below ``ess_threshold · N``, only the fraction ``β`` that keeps it
+  there (found by bisection) is applied; the particles are resampled and moved, their
+  likelihood re-evaluated, and the rest of the likelihood follows in further stages.
+* **Resampling**: systematic (Kitagawa 1996), whenever ESS falls below the threshold.
+* **Roughening / regularisation** (Musso, Oudjane & Le Gland 2001): after resampling,
+  each particle is jittered by ``N(0, h² C_c)`` with ``C_c`` the weighted covariance of
+  its mode ``c`` in ``[δθ (rotation vector about the mode's mean attitude), ω, k]`` and the
+  kernel bandwidth ``h = b (4/(d + 2))^{1/(d+4)} N_c^{−1/(d+4)}`` (``d`` the dimension,
+  ``b ≤ 1`` a shrink factor). Per-mode covariances keep a multi-modal cloud from being
+  smeared across its modes. The attitude jitter is applied on SO(3):
+  ``q ← exp(δθ) ⊗ q``.
+* **Resample-move** (Gilks & Berzuini 2001): optionally each jitter is a
+  Metropolis–Hastings proposal accepted with probability
+  ``min(1, exp(λ(x') − λ(x)))``, ``λ`` a tempered log-target supplied by the caller (for
+  light curves: the likelihood of a window of recent measurements, see
+  :mod:`lightcurve.inversion`). The jitter kernel is symmetric, so no proposal ratio.
+* **Estimates**: the weighted quaternion mean (Markley et al. 2007,
+  :func:`filters.attitude.quaternion_mean`) of the heaviest mode and its covariance, and
+  the **modes**: particles clustered greedily by attitude angle and rate difference
+  (optionally modulo a shape's symmetry group), each with its weight.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from filters.attitude import (
+    attitude_angle,
+    inertia_from_tanh,
+    quaternion_canonical,
+    quaternion_conjugate,
+    quaternion_mean,
+    quaternion_multiply,
+    quaternion_normalize,
+    quaternion_to_rotation_vector,
+    rotation_vector_to_quaternion,
+)
+from filters.ukf import propagate_torque_free
+
+__all__ = [
+    "AttitudeParticleFilter",
+    "Mode",
+    "ParticleUpdate",
+    "systematic_resample",
+]
+
+#: ``measure(q (N, 4), shape (N,) long) → (N,)`` predicted measurements (torch).
+ParticleMeasure = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
+#: ``target(q, ω, k, shape) → (N,)`` log-density used by resample-move.
+MoveTarget = Callable[[torch.Tensor, torch.Tensor, Any, torch.Tensor], torch.Tensor]
+
+
+def systematic_resample(weights: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """Indices drawn by systematic resampling (one uniform offset for all draws).
+
+    Parameters
+    ----------
+    weights : (N,) tensor
+        Normalised weights.
+    generator : torch.Generator
+
+    Returns
+    -------
+    (N,) long tensor
+    """
+    n = len(weights)
+    offset = torch.rand((), generator=generator, dtype=weights.dtype)
+    positions = (offset + torch.arange(n, dtype=weights.dtype)) / n
+    cumulative = torch.cumsum(weights, dim=0)
+    cumulative[-1] = 1.0
+    return torch.searchsorted(cumulative, positions).clamp(max=n - 1)
+
+
+@dataclass(frozen=True)
+class ParticleUpdate:
+    """Diagnostics of one measurement update.
+
+    Attributes
+    ----------
+    predicted : float
+        Weighted mean predicted measurement before the update.
+    variance : float
+        Weighted variance of the particles' predictions before the update.
+    log_evidence : float
+        ``ln Σ w_i p(z | x_i)`` (the measurement's marginal likelihood, tempered stages
+        combined).
+    ess : float
+        Effective sample size after the update.
+    stages : int
+        Tempering stages used (1: the likelihood was applied at once).
+    resampled : int
+        Resampling events during the update.
+    acceptance : float
+        Mean Metropolis–Hastings acceptance of the moves (NaN without moves).
+    """
+
+    predicted: float
+    variance: float
+    log_evidence: float
+    ess: float
+    stages: int
+    resampled: int
+    acceptance: float
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A cluster of particles.
+
+    Attributes
+    ----------
+    quaternion : (4,) numpy.ndarray
+        Weighted mean attitude (sign-canonical).
+    omega : (3,) numpy.ndarray
+        Weighted mean body rates (rad/s).
+    weight : float
+        Total weight of the cluster.
+    shape : int
+        Shape index of the cluster.
+    attitude_sigma : float
+        RMS attitude deviation of the members from the mean (rad).
+    omega_sigma : (3,) numpy.ndarray
+        Standard deviation of the members' rates (rad/s).
+    k : (2,) numpy.ndarray or None
+        Weighted mean tanh inertia parameters.
+    """
+
+    quaternion: np.ndarray
+    omega: np.ndarray
+    weight: float
+    shape: int
+    attitude_sigma: float
+    omega_sigma: np.ndarray
+    k: np.ndarray | None = None
+
+
+class AttitudeParticleFilter:
+    """SIR / regularised particle filter over ``(q, ω[, k][, shape])``.
+
+    Parameters
+    ----------
+    q : (N, 4) array
+        Initial attitudes.
+    omega : (N, 3) array
+        Initial body rates (rad/s).
+    inertias : sequence of (3, 3) arrays
+        Inertia of each shape (any scale).
+    log_weights : (N,) array, optional
+        Initial log-weights (uniform when omitted), e.g. ``log prior − log proposal``.
+    k : (N, 2) array, optional
+        Tanh inertia parameters; their presence makes the inertia part of the state.
+    shape : (N,) int array, optional
+        Shape index of each particle (all 0 when omitted).
+    principal_axes : sequence of (3, 3) arrays, optional
+        Principal axes (columns) of each shape for the tanh inertia form.
+    likelihood : {"gaussian", "student"}
+        Measurement likelihood.
+    nu : float
+        Degrees of freedom of the Student-t likelihood.
+    ess_threshold : float
+        Resample / temper when ``ESS < ess_threshold · N``.
+    bandwidth : float
+        Shrink factor ``b`` of the roughening kernel (0 disables roughening).
+    mode_angle, mode_rate : float
+        Clustering radii for the roughening covariances and :meth:`modes` (rad, rad/s).
+    max_step : float
+        Largest RK4 step (s).
+    seed : int, optional
+        Seed of the filter's torch generator.
+    dtype : torch.dtype
+
+    Attributes
+    ----------
+    q, omega, k, shape, log_weights : tensors
+        The particles.
+    """
+
+    def __init__(
+        self,
+        q: Any,
+        omega: Any,
+        inertias: Sequence[Any],
+        log_weights: Any = None,
+        k: Any = None,
+        shape: Any = None,
+        principal_axes: Sequence[Any] | None = None,
+        likelihood: str = "gaussian",
+        nu: float = 4.0,
+        ess_threshold: float = 0.5,
+        bandwidth: float = 0.5,
+        mode_angle: float = math.radians(10.0),
+        mode_rate: float = math.radians(0.5),
+        max_step: float = 1.0,
+        seed: int | None = None,
+        dtype: torch.dtype = torch.float64,
+    ) -> None:
+        if likelihood not in ("gaussian", "student"):
+            raise ValueError(f"likelihood must be 'gaussian' or 'student', got {likelihood!r}")
+        self.dtype = dtype
+        self.q = quaternion_normalize(torch.as_tensor(np.asarray(q), dtype=dtype))
+        self.omega = torch.as_tensor(np.asarray(omega), dtype=dtype)
+        n = len(self.q)
+        self.k = None if k is None else torch.as_tensor(np.asarray(k), dtype=dtype)
+        self.shape = (
+            torch.zeros(n, dtype=torch.long)
+            if shape is None
+            else torch.as_tensor(np.asarray(shape), dtype=torch.long)
+        )
+        self.log_weights = (
+            torch.zeros(n, dtype=dtype)
+            if log_weights is None
+            else torch.as_tensor(np.asarray(log_weights), dtype=dtype)
+        )
+        self._normalise()
+        self.inertias = torch.as_tensor(np.stack([np.asarray(j) for j in inertias]), dtype=dtype)
+        axes = principal_axes or [np.eye(3)] * len(inertias)
+        self.axes = torch.as_tensor(np.stack([np.asarray(a) for a in axes]), dtype=dtype)
+        self.likelihood = likelihood
+        self.nu = float(nu)
+        self.ess_threshold = float(ess_threshold)
+        self.bandwidth = float(bandwidth)
+        self.mode_angle = float(mode_angle)
+        self.mode_rate = float(mode_rate)
+        self.max_step = float(max_step)
+        self.generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    # ------------------------------------------------------------------ weights
+    @property
+    def weights(self) -> torch.Tensor:
+        """Normalised weights (N,)."""
+        return torch.exp(self.log_weights)
+
+    @property
+    def ess(self) -> float:
+        """Effective sample size ``1/Σ w²``."""
+        return float(1.0 / torch.sum(self.weights**2))
+
+    def _normalise(self) -> float:
+        """Normalise the log-weights; return the log of their previous sum."""
+        total = torch.logsumexp(self.log_weights, dim=0)
+        self.log_weights = self.log_weights - total
+        return float(total)
+
+    def shape_probabilities(self, n_shapes: int) -> np.ndarray:
+        """Posterior probability of each shape index, shape (n_shapes,)."""
+        return (
+            torch.zeros(n_shapes, dtype=self.dtype).index_add_(0, self.shape, self.weights).numpy()
+        )
+
+    # ------------------------------------------------------------------ dynamics
+    def _inertia(self) -> torch.Tensor:
+        if self.k is None:
+            if bool((self.shape == self.shape[0]).all()):
+                return self.inertias[self.shape[0]]
+            return self.inertias[self.shape]
+        axes = self.axes[self.shape]
+        return axes @ inertia_from_tanh(self.k) @ axes.transpose(-1, -2)
+
+    def predict(self, dt: float) -> None:
+        """Propagate every particle over ``dt`` seconds (torque-free, deterministic)."""
+        self.q, self.omega = propagate_torque_free(
+            self.q, self.omega, self._inertia(), float(dt), self.max_step
+        )
+
+    # ------------------------------------------------------------------ update
+    def log_likelihood(self, predicted: torch.Tensor, z: float, r: float) -> torch.Tensor:
+        """Per-particle measurement log-likelihood (up to a constant common to all)."""
+        nu2 = (predicted - z) ** 2 / r
+        if self.likelihood == "gaussian":
+            out = -0.5 * nu2 - 0.5 * math.log(2 * math.pi * r)
+        else:
+            nu = self.nu
+            out = (
+                -0.5 * (nu + 1.0) * torch.log1p(nu2 / nu)
+                + math.lgamma(0.5 * (nu + 1.0))
+                - math.lgamma(0.5 * nu)
+                - 0.5 * math.log(nu * math.pi * r)
+            )
+        return torch.nan_to_num(out, nan=-math.inf)
+
+    def update(
+        self,
+        z: float,
+        r: float,
+        measure: ParticleMeasure,
+        move_target: MoveTarget | None = None,
+        moves: int = 1,
+        max_stages: int = 50,
+    ) -> ParticleUpdate:
+        """Weight the particles by one scalar measurement, tempering when needed.
+
+        Parameters
+        ----------
+        z : float
+            Measurement.
+        r : float
+            Its variance.
+        measure : callable
+            ``measure(q (N, 4), shape (N,)) → (N,)`` predictions at this epoch.
+        move_target : callable, optional
+            Log-target of the resample-move step (``None``: plain roughening).
+        moves : int
+            Metropolis–Hastings moves per resampling (with ``move_target``).
+        max_stages : int
+            Upper bound on tempering stages (the last one applies the rest at once).
+
+        Returns
+        -------
+        ParticleUpdate
+        """
+        predicted = measure(self.q, self.shape)
+        mean_prediction = float(torch.sum(self.weights * predicted))
+        variance = float(torch.sum(self.weights * (predicted - mean_prediction) ** 2))
+        loglik = self.log_likelihood(predicted, z, r)
+        remaining, stages, resampled, evidence = 1.0, 0, 0, 0.0
+        acceptance: list[float] = []
+        target = self.ess_threshold * len(self)
+        while remaining > 0.0:
+            stages += 1
+            beta = remaining if stages >= max_stages else self._tempering_step(loglik, remaining)
+            self.log_weights = self.log_weights + beta * loglik
+            evidence += self._normalise()
+            remaining = remaining - beta if beta < remaining else 0.0
+            if self.ess < target:
+                resampled += 1
+                acceptance.extend(self._resample_move(move_target, moves))
+                if remaining > 0.0:
+                    loglik = self.log_likelihood(measure(self.q, self.shape), z, r)
+        return ParticleUpdate(
+            mean_prediction,
+            variance,
+            evidence,
+            self.ess,
+            stages,
+            resampled,
+            float(np.mean(acceptance)) if acceptance else math.nan,
+        )
+
+    def _tempering_step(self, loglik: torch.Tensor, remaining: float) -> float:
+        """Largest ``β ≤ remaining`` keeping ESS ≥ the threshold (bisection)."""
+        target = self.ess_threshold * len(self)
+
+        def ess(beta: float) -> float:
+            lw = self.log_weights + beta * loglik
+            w = torch.exp(lw - torch.logsumexp(lw, dim=0))
+            return float(1.0 / torch.sum(w**2))
+
+        if ess(remaining) >= target:
+            return remaining
+        low, high = 0.0, remaining
+        for _ in range(30):
+            mid = 0.5 * (low + high)
+            if ess(mid) >= target:
+                low = mid
+            else:
+                high = mid
+        return max(low, 1e-6 * remaining)
+
+    # ------------------------------------------------------------------ resample-move
+    def resample(self) -> None:
+        """Systematic resampling to equal weights."""
+        index = systematic_resample(self.weights, self.generator)
+        self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
+        if self.k is not None:
+            self.k = self.k[index]
+        self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
+
+    def _resample_move(self, move_target: MoveTarget | None, moves: int) -> list[float]:
+        self.resample()
+        if self.bandwidth <= 0.0:
+            return []
+        labels, centers = self._cluster(self.q, self.omega, self.shape, self.weights)
+        jitter = self._jitter_covariance(labels, centers)
+        if move_target is None:
+            self.q, self.omega, self.k = self._jittered(jitter)
+            return []
+        rates = []
+        current = move_target(self.q, self.omega, self.k, self.shape)
+        for _ in range(moves):
+            q, omega, k = self._jittered(jitter)
+            proposed = move_target(q, omega, k, self.shape)
+            log_u = torch.log(torch.rand(len(self), generator=self.generator, dtype=self.dtype))
+            accept = log_u < proposed - current
+            self.q = torch.where(accept[:, None], q, self.q)
+            self.omega = torch.where(accept[:, None], omega, self.omega)
+            if k is not None:
+                self.k = torch.where(accept[:, None], k, self.k)
+            current = torch.where(accept, proposed, current)
+            rates.append(float(accept.to(self.dtype).mean()))
+        return rates
+
+    def _jitter_covariance(self, labels: torch.Tensor, centers: torch.Tensor) -> torch.Tensor:
+        """Per-particle kernel covariance ``h² C_c`` of its cluster, shape (N, d, d)."""
+        state = self._local_state(centers[labels])
+        d = state.shape[1]
+        n_labels = int(labels.max()) + 1
+        covariances = torch.zeros((n_labels, d, d), dtype=self.dtype)
+        for c in range(n_labels):
+            members = state[labels == c]
+            m = len(members)
+            if m < 2:
+                continue
+            dev = members - members.mean(dim=0)
+            h = self.bandwidth * (4.0 / (d + 2)) ** (1.0 / (d + 4)) * m ** (-1.0 / (d + 4))
+            covariances[c] = h * h * (dev.T @ dev) / (m - 1)
+        return covariances[labels]
+
+    def _local_state(self, q_center: torch.Tensor) -> torch.Tensor:
+        """``[δθ about q_center, ω(, k)]`` of every particle, shape (N, d)."""
+        dtheta = quaternion_to_rotation_vector(
+            quaternion_multiply(self.q, quaternion_conjugate(q_center))
+        )
+        parts = [dtheta, self.omega] + ([self.k] if self.k is not None else [])
+        return torch.cat(parts, dim=1)
+
+    def _jittered(self, covariance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, Any]:
+        d = covariance.shape[-1]
+        eye = 1e-18 * torch.eye(d, dtype=self.dtype)
+        chol = torch.linalg.cholesky(covariance + eye)
+        noise = torch.randn((len(self), d, 1), generator=self.generator, dtype=self.dtype)
+        step = (chol @ noise)[..., 0]
+        q = quaternion_normalize(
+            quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), self.q)
+        )
+        omega = self.omega + step[:, 3:6]
+        k = None if self.k is None else self.k + step[:, 6:8]
+        return q, omega, k
+
+    # ------------------------------------------------------------------ estimates
+    def _cluster(
+        self, q: torch.Tensor, omega: torch.Tensor, shape: torch.Tensor, weights: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
+        unassigned particle of its shape within ``mode_angle`` and ``mode_rate``.
+
+        Returns
+        -------
+        labels : (N,) long tensor
+        centers : (C, 4) tensor
+            Seed attitude of each cluster.
+        """
+        labels = torch.full((len(q),), -1, dtype=torch.long)
+        centers = []
+        order = torch.argsort(weights, descending=True)
+        # Identical copies (after resampling) share a cluster: work on unique seeds.
+        while True:
+            free = order[labels[order] < 0]
+            if len(free) == 0:
+                break
+            seed = free[0]
+            near = (
+                (labels < 0)
+                & (shape == shape[seed])
+                & (attitude_angle(q, q[seed][None]) <= self.mode_angle)
+                & (torch.linalg.vector_norm(omega - omega[seed], dim=1) <= self.mode_rate)
+            )
+            near[seed] = True
+            labels[near] = len(centers)
+            centers.append(q[seed])
+        return labels, torch.stack(centers)
+
+    def modes(
+        self,
+        min_weight: float = 0.01,
+        fold: Callable[[np.ndarray, np.ndarray, np.ndarray], tuple] | None = None,
+    ) -> list[Mode]:
+        """Clusters of particles, heaviest first.
+
+        Parameters
+        ----------
+        min_weight : float
+            Clusters lighter than this are not reported.
+        fold : callable, optional
+            ``fold(q_reference (4,), q (M, 4), ω (M, 3), shape (M,)) → (q', ω')`` maps
+            particles to their symmetry-equivalent nearest a reference (a shape's symmetry
+            group), so that equivalent attitudes form one mode.
+
+        Returns
+        -------
+        list of Mode
+        """
+        q, omega, shape, weights = self.q, self.omega, self.shape, self.weights
+        if fold is not None:
+            q, omega = self._folded(fold)
+        labels, _ = self._cluster(q, omega, shape, weights)
+        out = []
+        for c in range(int(labels.max()) + 1):
+            members = labels == c
+            w = weights[members]
+            total = float(w.sum())
+            if total < min_weight:
+                continue
+            wn = w / w.sum()
+            qm = quaternion_mean(q[members], wn)
+            wm = (wn[:, None] * omega[members]).sum(dim=0)
+            angle = attitude_angle(q[members], qm[None])
+            km = None if self.k is None else (wn[:, None] * self.k[members]).sum(dim=0).numpy()
+            out.append(
+                Mode(
+                    quaternion=quaternion_canonical(qm).numpy(),
+                    omega=wm.numpy(),
+                    weight=total,
+                    shape=int(shape[members][0]),
+                    attitude_sigma=float(torch.sqrt(torch.sum(wn * angle**2))),
+                    omega_sigma=torch.sqrt(
+                        torch.sum(wn[:, None] * (omega[members] - wm) ** 2, dim=0)
+                    ).numpy(),
+                    k=km,
+                )
+            )
+        return sorted(out, key=lambda m: -m.weight)
+
+    def _folded(self, fold: Callable) -> tuple[torch.Tensor, torch.Tensor]:
+        """Particles folded onto the symmetry-equivalent closest to the heaviest one."""
+        best = int(torch.argmax(self.log_weights))
+        q, omega = fold(
+            self.q[best].numpy(), self.q.numpy(), self.omega.numpy(), self.shape.numpy()
+        )
+        return torch.as_tensor(q, dtype=self.dtype), torch.as_tensor(omega, dtype=self.dtype)
+
+    def estimate(self, fold: Callable | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mean state of the heaviest mode and its covariance.
+
+        Returns
+        -------
+        q : (4,) numpy.ndarray
+            Weighted quaternion mean of the heaviest mode.
+        omega : (3,) numpy.ndarray
+            Weighted mean rates (rad/s).
+        covariance : (6, 6) numpy.ndarray
+            Weighted covariance of ``[δθ, ω]`` of the mode's particles about the mean
+            (rad², rad²/s²).
+        """
+        q, omega, shape, weights = self.q, self.omega, self.shape, self.weights
+        if fold is not None:
+            q, omega = self._folded(fold)
+        labels, _ = self._cluster(q, omega, shape, weights)
+        mass = torch.zeros(int(labels.max()) + 1, dtype=self.dtype).index_add_(0, labels, weights)
+        members = labels == int(torch.argmax(mass))
+        wn = weights[members] / weights[members].sum()
+        qm = quaternion_canonical(quaternion_mean(q[members], wn))
+        dtheta = quaternion_to_rotation_vector(
+            quaternion_multiply(q[members], quaternion_conjugate(qm)[None])
+        )
+        state = torch.cat([dtheta, omega[members]], dim=1)
+        mean = (wn[:, None] * state).sum(dim=0)
+        dev = state - mean
+        covariance = (wn[:, None] * dev).T @ dev
+        return qm.numpy(), mean[3:].numpy(), covariance.numpy()
