@@ -40,6 +40,7 @@ __all__ = [
     "FisherTrace",
     "Forecast",
     "FunctionModel",
+    "MonocularKeyframeModel",
     "ObservationPlanner",
     "PlanningModel",
     "PosteriorRollout",
@@ -49,6 +50,7 @@ __all__ = [
     "fisher_information",
     "forecast",
     "greedy_schedule",
+    "monocular_keyframes",
     "plan_final_covariance",
     "plan_forecast",
     "plan_schedule",
@@ -877,3 +879,120 @@ def select_keyframes(
     )
     schedule = plan_final_covariance(full, count, s_max, indices, measure, method)
     return np.flatnonzero(schedule.taken[0]) + 1
+
+
+@dataclass(frozen=True)
+class MonocularKeyframeModel:
+    """The monocular EKF of seed 000 (:class:`filters.monocular.MonocularEKF`) as a
+    :class:`PlanningModel` over a sequence of frames.
+
+    Means are the EKF's nominal states ``[q, ω, p]``; step ``k`` is frame ``times[k]``. The
+    prediction is the EKF's (RK4 with the inertia fixed over the step, ``Φ = exp(C ΔT)``,
+    ``Q ΔT``); an attitude measurement at frame ``k`` (``H = [I₃ 0]``, eq. 35) carries
+    ``F_k = Hᵀ R_k⁻¹ H``.
+
+    Parameters
+    ----------
+    times : (K,) array
+        Frame times (s).
+    process_noise : (n, n) array
+        The EKF's process-noise spectral density ``Q`` (per second).
+    measurement_noise : (K, 3, 3) array
+        Covariance of each frame's ``δq_v`` measurement (half-angle units, rad²/4).
+    form : {"L", "k"}
+        Inertia parameterisation.
+    """
+
+    times: np.ndarray
+    process_noise: np.ndarray
+    measurement_noise: np.ndarray
+    form: str = "L"
+
+    @classmethod
+    def from_filter(cls, ekf: Any, times: Any, sigma: Any = None) -> MonocularKeyframeModel:
+        """Model of a :class:`~filters.monocular.MonocularEKF` over frames at ``times``.
+
+        Parameters
+        ----------
+        ekf : MonocularEKF
+        times : (K,) array
+            Frame times (s), the first being the EKF's current time.
+        sigma : (K,) array, optional
+            One-sigma rotation error per axis of each frame's attitude (rad), e.g.
+            :attr:`filters.epipolar.AttitudeSequence.sigma`; ``R_k = (σ_k/2)² I₃``. Default:
+            the EKF's ``R`` for every frame.
+        """
+        times = np.asarray(times, dtype=float)
+        if sigma is None:
+            r = np.broadcast_to(ekf.R, (times.size, 3, 3))
+        else:
+            r = (np.asarray(sigma, dtype=float) / 2)[:, None, None] ** 2 * np.eye(3)
+        return cls(times, np.asarray(ekf.Q, dtype=float), r, ekf.form.name)
+
+    def predict(self, x: Any, step: int) -> np.ndarray:
+        """Nominal state at the next frame (the EKF's RK4 step)."""
+        from filters.attitude import rk4_step, torque_free_derivative
+        from filters.monocular import inertia_form
+
+        x = np.asarray(x, dtype=float)
+        f = torque_free_derivative(inertia_form(self.form).tensor(x[..., 7:]))
+        qw = rk4_step(f, x[..., :7], self.times[step + 1] - self.times[step])
+        return np.concatenate([qw, x[..., 7:]], axis=-1)
+
+    def linearize(self, x: Any, step: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The EKF's ``Φ`` and ``Q ΔT`` to the next frame."""
+        from filters.attitude import transition_matrix
+        from filters.monocular import error_state_matrix
+
+        x = np.asarray(x, dtype=float)
+        dt = np.broadcast_to(self.times[np.asarray(step) + 1] - self.times[step], x.shape[:1])
+        c = error_state_matrix(x[..., 4:7], x[..., 7:], self.form)
+        phi = transition_matrix(c * dt[:, None, None], 1.0)
+        return phi, self.process_noise * dt[:, None, None]
+
+    def information(self, x: Any, step: Any) -> np.ndarray:
+        """``Hᵀ R_k⁻¹ H`` of the frame's attitude measurement."""
+        n = np.asarray(x).shape[-1] - 1
+        step = np.broadcast_to(np.asarray(step), np.asarray(x).shape[:1])
+        f = np.zeros((step.size, n, n))
+        f[:, :3, :3] = np.linalg.inv(self.measurement_noise[step])
+        return f
+
+
+def monocular_keyframes(
+    ekf: Any,
+    times: Any,
+    count: int,
+    sigma: Any = None,
+    s_max: int | None = None,
+    indices: Sequence[int] | None = (0, 1, 2),
+) -> np.ndarray:
+    """Keyframes for the monocular EKF: ``count`` of the frames ``1 … K − 1`` that minimise
+    its predicted final covariance (attitude by default), from its current state.
+
+    Parameters
+    ----------
+    ekf : MonocularEKF
+        At the time of frame 0 (state ``x``, covariance ``P``; batch dimensions allowed).
+    times : (K,) array
+        Frame times (s).
+    count : int
+        Keyframes to process.
+    sigma : (K,) array, optional
+        Per-frame attitude noise (rad, see :meth:`MonocularKeyframeModel.from_filter`).
+    s_max : int, optional
+        Largest gap between keyframes (frames), e.g. to keep features matched.
+    indices : sequence of int, optional
+        Error states whose final covariance is minimised.
+
+    Returns
+    -------
+    (B, count) int numpy.ndarray
+        Selected frame numbers per filter (sorted), ``B = 1`` for an unbatched EKF.
+    """
+    model = MonocularKeyframeModel.from_filter(ekf, times, sigma)
+    x = np.asarray(ekf.x, dtype=float).reshape(-1, ekf.x.shape[-1])
+    p = np.asarray(ekf.P, dtype=float).reshape(-1, ekf.dim, ekf.dim)
+    full = forecast(model, x, p, 0, len(model.times) - 1)
+    taken = greedy_schedule(full, count, s_max, indices).taken
+    return np.stack([np.flatnonzero(row) + 1 for row in taken])

@@ -226,31 +226,28 @@ class PhotometricPlanningModel:
     def _transition(self, x: np.ndarray, h: np.ndarray, count: int) -> tuple[np.ndarray, ...]:
         """Product of ``count`` Van Loan substeps of lengths ``h`` ``(N,)`` along the mean."""
         n = self.n_states
-        h_t = torch.as_tensor(h)[:, None, None]
+        h_b = h[:, None, None]
         derivative = torque_free_derivative(inertia_from_normalized(x[..., 7:]))
-        noise = torch.zeros(n, n, dtype=torch.float64)
-        noise[3:6, 3:6] = self.rate_noise**2 * torch.eye(3, dtype=torch.float64)
-        phi = torch.eye(n, dtype=torch.float64).expand(len(x), n, n)
-        q = torch.zeros(len(x), n, n, dtype=torch.float64)
+        noise = np.zeros((len(x), n, n))
+        noise[:, 3:6, 3:6] = self.rate_noise**2 * np.eye(3)
+        van_loan = np.zeros((len(x), 2 * n, 2 * n))
+        van_loan[:, :n, n:] = noise * h_b
+        phi = np.broadcast_to(np.eye(n), (len(x), n, n))
+        q = np.zeros((len(x), n, n))
         qw = x[..., :7]
         c_start = self._system_matrix(qw[..., 4:], x[..., 7:])
         for _ in range(count):
             qw = rk4_step(derivative, qw, h[:, None])
             c_end = self._system_matrix(qw[..., 4:], x[..., 7:])
-            c = 0.5 * (c_start + c_end)
-            van_loan = torch.cat(
-                [
-                    torch.cat([-c, noise.expand_as(c)], -1),
-                    torch.cat([torch.zeros_like(c), c.mT], -1),
-                ],
-                -2,
-            )
-            e = transition_matrix(van_loan * h_t, 1.0)
-            phi_sub = e[:, n:, n:].mT
+            c = 0.5 * (c_start + c_end) * h_b
+            van_loan[:, :n, :n] = -c
+            van_loan[:, n:, n:] = np.swapaxes(c, -1, -2)
+            e = transition_matrix(van_loan, 1.0)
+            phi_sub = np.swapaxes(e[:, n:, n:], -1, -2)
             phi = phi_sub @ phi
-            q = phi_sub @ q @ phi_sub.mT + phi_sub @ e[:, :n, n:]
+            q = phi_sub @ q @ np.swapaxes(phi_sub, -1, -2) + phi_sub @ e[:, :n, n:]
             c_start = c_end
-        return phi.numpy(), (0.5 * (q + q.mT)).numpy()
+        return phi, 0.5 * (q + np.swapaxes(q, -1, -2))
 
     def information(self, x: np.ndarray, step: Any) -> np.ndarray:
         """Fisher information ``F = hᵀ h / σ²`` ``(N, n, n)`` of a magnitude at ``step``."""
@@ -304,10 +301,10 @@ class PhotometricPlanningModel:
             q, torch.as_tensor(self.sun[step]), torch.as_tensor(self.observer[step])
         )
 
-    def _system_matrix(self, omega: np.ndarray, l: np.ndarray) -> torch.Tensor:
-        """``C`` of the error dynamics, cut to the model's states, as a torch tensor."""
+    def _system_matrix(self, omega: np.ndarray, l: np.ndarray) -> np.ndarray:
+        """``C`` of the error dynamics, cut to the model's states."""
         n = self.n_states
-        return torch.as_tensor(error_state_matrix(omega, l)[..., :n, :n])
+        return error_state_matrix(omega, l)[..., :n, :n]
 
 
 def largest_information_steps(ahead: Forecast, count: int) -> np.ndarray:

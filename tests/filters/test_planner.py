@@ -222,7 +222,7 @@ def test_greedy_schedule_is_close_to_the_exhaustive_optimum():
     assert np.sum(np.isclose(ratios[1], 1.0)) >= 7
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(st.integers(2, 30), st.integers(1, 8), st.integers(0, 2**31 - 1), st.data())
 def test_greedy_schedule_keeps_the_largest_interval(length, s_max, seed, data):
     count = data.draw(st.integers(1, length))
@@ -346,3 +346,76 @@ def test_keyframes_give_a_lower_final_attitude_covariance_than_uniform(tumbling_
     planned = np.isin(np.arange(1, frames + 1), spaced)
     final_spaced = np.trace(propagate_schedule(full, planned[None])[-1, 0, :3, :3])
     assert final_spaced < 0.95 * final_uniform
+
+
+# --- keyframes driving the monocular EKF (seed 000) ---------------------------------------
+
+
+def test_monocular_keyframes_drive_the_real_ekf():
+    """Keyframes planned from the EKF's own model, then run through MonocularEKF."""
+    from filters.attitude import (
+        attitude_angle,
+        normalized_from_inertia,
+        propagate,
+        quaternion_multiply,
+    )
+    from filters.features import simulate_tracks
+    from filters.monocular import MonocularEKF, perturb_attitudes
+    from filters.planner import MonocularKeyframeModel, monocular_keyframes
+
+    inertia = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])  # scenario A
+    times = np.arange(121.0)
+    truth = propagate(np.r_[0, 0, 0, 1.0, np.radians([5.0, 2.3, 3.5])], times, inertia)
+    rng = np.random.default_rng(7)
+    points, normals = box_features(rng)
+    tracks = simulate_tracks(
+        points, normals, truth[:, :4], times, CAMERA, np.array([0, 0, 8.0]), SIGMA_PX, rng
+    )
+    # A relative attitude from n tracked points: σ ∝ 1/√n (0.5° with 24 points).
+    sigma = np.radians(0.5) * np.sqrt(24 / tracks.visible.sum(axis=1))
+    assert np.ptp(sigma) > 0.3 * sigma.min()
+    nominal = np.r_[truth[0], normalized_from_inertia(inertia)]
+    p0 = np.diag([1e-4] * 3 + [1e-6] * 3 + [1e-3] * 5)
+    q = 1e-10 * np.eye(11)
+    frames = monocular_keyframes(MonocularEKF(nominal, p0, q, np.eye(3)), times, 15, sigma)[0]
+    uniform = np.flatnonzero(uniform_steps(120, 15)) + 1
+    assert frames.size == 15 and np.all(np.diff(frames) > 0)
+
+    def run(keyframes, x0, measurements):
+        ekf = MonocularEKF(x0, p0, q, np.eye(3))
+        for k in range(1, times.size):
+            ekf.predict(times[k] - times[k - 1])
+            if k in keyframes:
+                ekf.R = (sigma[k] / 2) ** 2 * np.eye(3)  # per-frame noise (no update(z, R))
+                ekf.update(measurements[k])
+        return ekf
+
+    # Fed the truth, the EKF's covariance is the planner's forecast recursion.
+    model = MonocularKeyframeModel.from_filter(
+        MonocularEKF(nominal, p0, q, np.eye(3)), times, sigma
+    )
+    full = forecast(model, nominal[None], p0[None], 0, 120)
+    predicted = propagate_schedule(full, np.isin(np.arange(1, 121), frames)[None])[-1, 0]
+    exact = run(frames, nominal[None], truth[:, None, :4])
+    np.testing.assert_allclose(
+        exact.P[0], predicted, rtol=1e-5, atol=1e-6 * np.abs(predicted).max()
+    )
+    # Monte Carlo: 200 runs with initial errors drawn from P0 and noisy attitudes.
+    runs = 200
+    d = rng.multivariate_normal(np.zeros(11), p0, runs)
+    dq = np.c_[d[:, :3], np.sqrt(1 - np.sum(d[:, :3] ** 2, axis=1))]
+    x0 = np.c_[
+        quaternion_multiply(dq, truth[0, :4]), truth[0, 4:] + d[:, 3:6], nominal[7:] + d[:, 6:]
+    ]
+    z = np.stack(
+        [perturb_attitudes(np.tile(truth[k, :4], (runs, 1)), sigma[k], rng) for k in range(121)]
+    )
+    result = {}
+    for name, keys in (("planned", frames), ("uniform", uniform)):
+        ekf = run(keys, x0, z)
+        error = np.degrees(attitude_angle(ekf.x[:, :4], truth[-1, :4]))
+        result[name] = (np.trace(ekf.P[0, :3, :3]), np.sqrt(np.mean(error**2)))
+    # Measured: EKF σ 0.29° vs 0.51° (variance 0.32×); RMS error 0.38° vs 0.54° (the EKF
+    # is overconfident on the sparse keyframes: error 1.3× its σ, uniform 1.06×).
+    assert result["planned"][0] < 0.5 * result["uniform"][0]
+    assert result["planned"][1] < 0.9 * result["uniform"][1]
