@@ -17,8 +17,10 @@ rendered by :class:`~lightcurve.render.Renderer`. Its row Jacobian
 magnitude depends on the attitude at its epoch only; the rates enter through the dynamics).
 The Fisher information of the epoch is ``F_k = h_kᵀ h_k / σ_k²`` (seed 001 eq. 20), a rank-one
 matrix: one magnitude never bounds the attitude alone, so the seed's ``min tr F⁻¹`` does not
-apply and epochs are chosen with the budgeted posterior criterion
-(:class:`~filters.planner.PosteriorRollout`, via :func:`~filters.planner.plan_final_covariance`).
+apply and a budget of epochs is chosen for the smallest final attitude covariance
+(:func:`~filters.planner.greedy_schedule` with an exchange pass, via
+:func:`~filters.planner.plan_final_covariance`; the sequential
+:class:`~filters.planner.PosteriorRollout` on request).
 Dark epochs (no lit facet visible, infinite magnitude) carry no information.
 
 Dynamics: torque-free motion propagated with the attitude core's RK4
@@ -37,9 +39,9 @@ The product over substeps is checked against the autograd Jacobian of the RK4 ma
 
 Example
 -------
->>> model = PhotometricPlanningModel.from_observations(geometry, shape, sigma_mag=0.03)
->>> x0 = model.state(q0, omega0)                       # (B, 12)
->>> study = compare_schedules(model, x0, p0, budget=24)  # doctest: +SKIP
+>>> model = PhotometricPlanningModel.from_observations(geometry, shape, 0.03)  # doctest: +SKIP
+>>> x0 = model.state(q0, omega0, shape.inertia)  # (B, 12)  # doctest: +SKIP
+>>> compare_schedules(model, x0, p0, budget=24).ratio()  # planned / uniform  # doctest: +SKIP
 """
 
 from __future__ import annotations
