@@ -23,6 +23,12 @@ Two pluggable criteria:
     remaining budget is then spread evenly (a one-step rollout of the uniform policy,
     Bertsekas 2005, *Dynamic Programming*, sec. 6.4).
 
+Offline sets for the covariance at the last step (keyframes of a recorded sequence, epochs of
+a light curve) are chosen by :func:`greedy_schedule`: exact covariance reductions of every
+candidate from one filter and one RTS smoother pass (:func:`final_covariance_reduction`),
+greedy additions and exchange passes. :class:`MonocularKeyframeModel` and
+:func:`monocular_keyframes` drive it from the monocular EKF of :mod:`filters.monocular`.
+
 Arrays carry leading batch axes (independent Monte Carlo runs): means ``(B, …)`` are opaque to
 the planner (only handed back to the model), covariances are ``(B, n, n)``.
 """
