@@ -49,8 +49,8 @@ import torch
 
 from filters.attitude import (
     attitude_matrix,
+    error_state_matrix,
     euler_rate,
-    euler_rate_jacobian,
     euler_rate_jacobian_normalized,
     euler_rate_jacobian_tanh,
     inertia_from_normalized,
@@ -68,7 +68,6 @@ from filters.attitude import (
     transition_matrix,
 )
 from filters.attitude._array import as_arrays
-from filters.attitude.kinematics import cross_matrix
 from filters.kalman import joseph_update, mahalanobis_squared
 from filters.observability import Chart, RankTest, observability_gramian, observability_rank
 
@@ -77,7 +76,6 @@ __all__ = [
     "FilterHistory",
     "InertiaForm",
     "MonocularEKF",
-    "error_state_matrix",
     "inertia_form",
     "observability_at",
     "perturb_attitudes",
@@ -179,48 +177,6 @@ def state_derivative(form: str | InertiaForm = "L") -> Callable[[Any], Any]:
     return derivative
 
 
-def error_state_matrix(omega: Any, p: Any, form: str | InertiaForm = "L") -> Any:
-    """The matrix ``C`` of the error dynamics ``δẋ = C δx`` (seed 000 eq. 33).
-
-    ``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]`` with ``M = ∂ω̇/∂ω`` and ``N = ∂ω̇/∂p``
-    (eq. 24) from the attitude core. For form ``"L"`` it equals
-    :func:`filters.attitude.error_state_matrix`.
-
-    Parameters
-    ----------
-    omega : (..., 3) array
-        Estimated body rates (rad/s).
-    p : (..., m) array
-        Estimated inertia parameters.
-    form : str or InertiaForm
-
-    Returns
-    -------
-    (..., 6 + m, 6 + m) array
-    """
-    spec = inertia_form(form)
-    xp, (w, p) = as_arrays(omega, p)
-    batch = np.broadcast_shapes(w.shape[:-1], p.shape[:-1])
-    n = 6 + spec.size
-    kwargs = {"dtype": w.dtype, "device": getattr(w, "device", None)}
-    zeros = xp.zeros((*batch, 3, 3), **kwargs)
-    eye = xp.broadcast_to(0.5 * xp.eye(3, **kwargs), (*batch, 3, 3))
-    m = xp.broadcast_to(euler_rate_jacobian(w, spec.tensor(p)), (*batch, 3, 3))
-    top = xp.concat(
-        [
-            xp.broadcast_to(-cross_matrix(w), (*batch, 3, 3)),
-            eye,
-            xp.zeros((*batch, 3, spec.size), **kwargs),
-        ],
-        axis=-1,
-    )
-    middle = xp.concat(
-        [zeros, m, xp.broadcast_to(spec.rate_jacobian(w, p), (*batch, 3, spec.size))], axis=-1
-    )
-    bottom = xp.zeros((*batch, spec.size, n), **kwargs)
-    return xp.concat([top, middle, bottom], axis=-2)
-
-
 @dataclass
 class FilterHistory:
     """Output of :meth:`MonocularEKF.batch_filter`.
@@ -309,7 +265,7 @@ class MonocularEKF:
         """
         if dt <= 0:
             raise ValueError(f"time step must be positive, got {dt}")
-        c = error_state_matrix(self.x[..., 4:7], self.x[..., 7:], self.form)
+        c = error_state_matrix(self.x[..., 4:7], self.x[..., 7:], self.form.name)
         phi = transition_matrix(c, dt)
         # ṗ = 0, so the inertia is fixed over the step: propagate [q, ω] with J⁻¹ computed once.
         f = torque_free_derivative(self.form.tensor(self.x[..., 7:]))
@@ -335,7 +291,7 @@ class MonocularEKF:
         dq = quaternion_canonical(quaternion_multiply(z, quaternion_conjugate(self.x[..., :4])))
         return np.asarray(dq[..., :3])
 
-    def update(self, z: Any) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, z: Any, r: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """Update with a measured quaternion (eqs. 35–36, Joseph form).
 
         Parameters
@@ -343,6 +299,9 @@ class MonocularEKF:
         z : (..., 4) array_like
             Measured attitude relative to the first frame; NaN rows are missing
             measurements (no update for that filter).
+        r : (..., 3, 3) array_like, optional
+            Measurement noise covariance of this update (default: the filter's ``R``), e.g.
+            from the epipolar pipeline's per-pair estimate.
 
         Returns
         -------
@@ -353,12 +312,13 @@ class MonocularEKF:
         z = np.asarray(z, dtype=float)
         valid = np.all(np.isfinite(z), axis=-1)
         nu = self.innovation(np.where(valid[..., None], z, self.x[..., :4]))
-        s = self.P[..., :3, :3] + self.R
+        r = self.R if r is None else np.asarray(r, dtype=float)
+        s = self.P[..., :3, :3] + r
         nis = mahalanobis_squared(nu, s)
         # K = P Hᵀ S⁻¹ with H = [I 0]: P Hᵀ is the first three columns of P.
         gain = np.swapaxes(np.linalg.solve(s, np.swapaxes(self.P[..., :, :3], -1, -2)), -1, -2)
         dx = (gain @ nu[..., None])[..., 0]
-        p = joseph_update(self.P, gain, self.H, self.R)
+        p = joseph_update(self.P, gain, self.H, r)
         dq = np.concatenate([dx[..., :3], np.ones_like(dx[..., :1])], axis=-1)
         q = quaternion_normalize(quaternion_multiply(dq, self.x[..., :4]))
         x = np.concatenate([q, self.x[..., 4:] + dx[..., 3:]], axis=-1)

@@ -947,12 +947,12 @@ class MonocularKeyframeModel:
 
     def linearize(self, x: Any, step: Any) -> tuple[np.ndarray, np.ndarray]:
         """The EKF's ``Φ`` and ``Q ΔT`` to the next frame."""
-        from filters.attitude import transition_matrix
-        from filters.monocular import error_state_matrix
+        from filters.attitude import error_state_matrix, transition_matrix
+        from filters.monocular import inertia_form
 
         x = np.asarray(x, dtype=float)
         dt = np.broadcast_to(self.times[np.asarray(step) + 1] - self.times[step], x.shape[:1])
-        c = error_state_matrix(x[..., 4:7], x[..., 7:], self.form)
+        c = error_state_matrix(x[..., 4:7], x[..., 7:], inertia_form(self.form).name)
         phi = transition_matrix(c * dt[:, None, None], 1.0)
         return phi, self.process_noise * dt[:, None, None]
 

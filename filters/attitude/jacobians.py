@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from filters.attitude._array import as_arrays, cross, matvec
-from filters.attitude.inertia import inertia_from_normalized, ratios_from_tanh
+from filters.attitude.inertia import inertia_from_normalized, inertia_from_tanh, ratios_from_tanh
 from filters.attitude.kinematics import cross_matrix, omega_matrix, xi_matrix
 
 __all__ = [
@@ -116,42 +116,53 @@ def euler_rate_jacobian_tanh(omega: Any, k: Any) -> Any:
     )
 
 
-def error_state_matrix(omega: Any, l: Any) -> Any:
-    """The 11×11 matrix ``C`` of the seed-000 error-state dynamics ``δẋ = C δx``.
+def error_state_matrix(omega: Any, params: Any, form: str = "L") -> Any:
+    """The matrix ``C`` of the error-state dynamics ``δẋ = C δx`` (seed 000 eqs. 27–33).
+
+    ``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]`` with ``M = ∂ω̇/∂ω`` and
+    ``N = ∂ω̇/∂p`` for the inertia parameters ``p`` of the chosen form.
 
     Parameters
     ----------
     omega : (..., 3) array
         Estimated body rates (rad/s).
-    l : (..., 5) array
-        Estimated ``[Lxx, Lyy, Lxy, Lxz, Lyz]``.
+    params : (..., 5) or (..., 2) array
+        ``[Lxx, Lyy, Lxy, Lxz, Lyz]`` (form ``"L"``, seed 000) or ``[k1, k2]`` (form ``"k"``,
+        the principal-axis tanh form of seed 004).
+    form : {"L", "k"}
 
     Returns
     -------
-    (..., 11, 11) array
-        Rows/columns ordered ``[δq_v (3), δω (3), δl (5)]``.
+    (..., 6 + m, 6 + m) array
+        Rows/columns ordered ``[δq_v (3), δω (3), δp (m)]``; 11×11 for ``"L"``, 8×8 for ``"k"``.
     """
-    xp, (w, l) = as_arrays(omega, l)
-    batch = xp.broadcast_shapes(w.shape[:-1], l.shape[:-1])
-    eye = xp.eye(3, dtype=w.dtype, device=getattr(w, "device", None))
-    zeros = xp.zeros((*batch, 3, 5), dtype=w.dtype, device=getattr(w, "device", None))
+    xp, (w, p) = as_arrays(omega, params)
+    if form == "L":
+        inertia, n_block = inertia_from_normalized(p), euler_rate_jacobian_normalized(w, p)
+    elif form == "k":
+        inertia, n_block = inertia_from_tanh(p), euler_rate_jacobian_tanh(w, p)
+    else:
+        raise ValueError(f"inertia form must be 'L' or 'k', got {form!r}")
+    m = p.shape[-1]
+    batch = xp.broadcast_shapes(w.shape[:-1], p.shape[:-1])
+    kwargs = {"dtype": w.dtype, "device": getattr(w, "device", None)}
     top = xp.concat(
         [
             xp.broadcast_to(-cross_matrix(w), (*batch, 3, 3)),
-            xp.broadcast_to(0.5 * eye, (*batch, 3, 3)),
-            zeros,
+            xp.broadcast_to(0.5 * xp.eye(3, **kwargs), (*batch, 3, 3)),
+            xp.zeros((*batch, 3, m), **kwargs),
         ],
         axis=-1,
     )
     middle = xp.concat(
         [
-            xp.zeros((*batch, 3, 3), dtype=w.dtype, device=getattr(w, "device", None)),
-            xp.broadcast_to(euler_rate_jacobian(w, inertia_from_normalized(l)), (*batch, 3, 3)),
-            xp.broadcast_to(euler_rate_jacobian_normalized(w, l), (*batch, 3, 5)),
+            xp.zeros((*batch, 3, 3), **kwargs),
+            xp.broadcast_to(euler_rate_jacobian(w, inertia), (*batch, 3, 3)),
+            xp.broadcast_to(n_block, (*batch, 3, m)),
         ],
         axis=-1,
     )
-    bottom = xp.zeros((*batch, 5, 11), dtype=w.dtype, device=getattr(w, "device", None))
+    bottom = xp.zeros((*batch, m, 6 + m), **kwargs)
     return xp.concat([top, middle, bottom], axis=-2)
 
 

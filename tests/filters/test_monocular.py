@@ -15,6 +15,7 @@ from torch.func import jacfwd
 
 from filters.attitude import (
     attitude_angle,
+    error_state_matrix,
     euler_rate,
     inertia_from_normalized,
     normalized_from_inertia,
@@ -23,14 +24,10 @@ from filters.attitude import (
     random_quaternion,
     tanh_from_inertia,
 )
-from filters.attitude import (
-    error_state_matrix as core_error_state_matrix,
-)
 from filters.kalman import joseph_update, kalman_gain
 from filters.monocular import (
     FORMS,
     MonocularEKF,
-    error_state_matrix,
     perturb_attitudes,
     reference_frame_truth,
     state_derivative,
@@ -86,8 +83,6 @@ def test_error_state_matrix_matches_autograd(form, omega, seed):
     c = error_state_matrix(np.asarray(omega), p, form)
     scale = max(1.0, float(np.abs(c).max()))
     assert np.max(np.abs(c - auto.numpy())) < 1e-9 * scale
-    if form == "L":
-        assert np.max(np.abs(c - core_error_state_matrix(np.asarray(omega), p))) < 1e-15
 
 
 def test_state_derivative_is_the_core_dynamics_in_numpy_and_torch():
@@ -204,3 +199,15 @@ def test_tanh_form_converges_for_a_principal_axis_body():
     assert np.max(np.abs(k_hat - k_true)) < 0.02
     assert np.max(np.abs(study.history.states[300, :, 7:] - k_true)) > 0.05
     assert np.all(convergence(study)["errors"]["attitude_deg"][-1] < 0.5)
+
+
+def test_update_accepts_a_per_update_noise():
+    x = np.r_[0.0, 0.0, 0.0, 1.0, 0.1, 0.0, 0.05, normalized_from_inertia(J_A)]
+    p = 1e-3 * np.eye(11)
+    z = np.array([0.01, 0.0, 0.0, np.sqrt(1 - 1e-4)])
+    default = MonocularEKF(x, p, 1e-3 * np.eye(11), 1e-4 * np.eye(3))
+    explicit = MonocularEKF(x, p, 1e-3 * np.eye(11), np.eye(3))
+    default.update(z)
+    explicit.update(z, r=1e-4 * np.eye(3))
+    np.testing.assert_allclose(explicit.P, default.P, atol=1e-15)
+    np.testing.assert_allclose(explicit.x, default.x, atol=1e-15)
