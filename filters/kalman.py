@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
 __all__ = [
     "chi2_band",
@@ -124,28 +124,34 @@ def discrete_process_noise(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Discretise ``ẋ = A x + w``, ``E[w wᵀ] = Q δ(t)`` exactly (Van Loan 1978).
 
+    Broadcasts over leading dimensions (one system per Monte Carlo run, say); the matrix
+    exponential is the attitude core's batched :func:`~filters.attitude.transition_matrix`.
+
     Parameters
     ----------
-    a : (n, n) array
+    a : (..., n, n) array
         Continuous system matrix.
-    q : (n, n) array
+    q : (..., n, n) array
         Continuous process-noise spectral density.
     dt : float
         Step (s).
 
     Returns
     -------
-    phi : (n, n) numpy.ndarray
+    phi : (..., n, n) numpy.ndarray
         ``exp(A Δt)``.
-    q_discrete : (n, n) numpy.ndarray
+    q_discrete : (..., n, n) numpy.ndarray
         ``∫₀^Δt exp(A s) Q exp(A s)ᵀ ds``.
     """
-    n = a.shape[0]
-    block = np.zeros((2 * n, 2 * n))
-    block[:n, :n] = -a
-    block[:n, n:] = q
-    block[n:, n:] = a.T
-    e = linalg.expm(block * dt)
-    phi = e[n:, n:].T
-    q_d = phi @ e[:n, n:]
-    return phi, 0.5 * (q_d + q_d.T)
+    from filters.attitude.jacobians import transition_matrix
+
+    a, q = np.broadcast_arrays(np.asarray(a, float), np.asarray(q, float))
+    n = a.shape[-1]
+    block = np.zeros((*a.shape[:-2], 2 * n, 2 * n))
+    block[..., :n, :n] = -a
+    block[..., :n, n:] = q
+    block[..., n:, n:] = _t(a)
+    e = transition_matrix(block, dt)
+    phi = _t(e[..., n:, n:])
+    q_d = phi @ e[..., :n, n:]
+    return phi, 0.5 * (q_d + _t(q_d))

@@ -62,3 +62,13 @@ def test_batched_forms_equal_single_ones():
         np.testing.assert_allclose(gains[i], g, atol=1e-12)
         np.testing.assert_allclose(s[i], si, atol=1e-12)
         np.testing.assert_allclose(updated[i], joseph_update(p[i], g, h[i], r[i]), atol=1e-12)
+
+
+def test_van_loan_batches():
+    a = np.stack([np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0, 1.0], [-1.0, -0.1]])])
+    q = np.diag([0.0, 2.0])
+    phi, qd = discrete_process_noise(a, q, 0.5)
+    for i in range(2):
+        p1, q1 = discrete_process_noise(a[i], q, 0.5)
+        np.testing.assert_allclose(phi[i], p1, atol=1e-14)
+        np.testing.assert_allclose(qd[i], q1, atol=1e-14)
