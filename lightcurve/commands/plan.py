@@ -39,7 +39,7 @@ from filters.lander import (
     error_statistics,
 )
 from lightcurve.atomic import atomic_write_json
-from lightcurve.commands._scenario_toml import ScenarioError, TomlTable, load_toml
+from lightcurve.scenarios import ScenarioError, TomlTable, load_toml
 
 NAME = "plan"
 HELP = "plan landmark images of a small-body landing by Fisher information (seed 001)"
