@@ -48,11 +48,11 @@ from shapes import FacetModel
 
 __all__ = [
     "SpinState",
-    "simulate_rotator",
     "pole_distance",
     "pole_quaternion",
     "pole_vector",
     "rotation_angle",
+    "simulate_rotator",
     "spin_attitude",
     "spin_from_attitude",
 ]
@@ -275,7 +275,7 @@ def simulate_rotator(
     spin: SpinState,
     noise: NoiseModel | None = None,
     seed: int | np.random.Generator | None = None,
-    relative: bool = True,
+    relative: bool | None = True,
     shadows: str = "auto",
 ) -> Observations:
     """Light curves of a body in uniform rotation about its z axis, one curve at a time.
@@ -296,8 +296,9 @@ def simulate_rotator(
     spin : SpinState
     noise : NoiseModel, optional
     seed : int or numpy.random.Generator, optional
-    relative : bool
-        Flag every light curve as relative (as most asteroid photometry is).
+    relative : bool or None
+        True: flag every light curve relative (as most asteroid photometry is); False:
+        calibrated (the simulated magnitudes are absolute); None: keep the geometry's flags.
     shadows : str
         Renderer shadow mode.
 
@@ -317,7 +318,9 @@ def simulate_rotator(
         result = simulate(night, shape, q0, omega0, inertia, noise, shadows, rng)
         out = result.table.copy()
         out["lightcurve_id"] = int(label)
-        out["relative"] = relative if relative else bool(geometry.relative[ids == label][0])
+        out["relative"] = (
+            bool(geometry.relative[ids == label][0]) if relative is None else bool(relative)
+        )
         tables.append(out)
     meta = {
         key: value for key, value in geometry.meta.items() if key not in ("source_format", "notes")

@@ -207,6 +207,13 @@ def _solve(
     x0 = _start_vectors(model, settings, starts)
     free = _free_mask(model, settings)
     lambert_free = "c" in settings.free
+    if model.has_calibrated:
+        # Start the calibrated curves' scale at its least-squares value for the sphere.
+        with torch.no_grad():
+            fitted, _ = model.evaluate(x0, jacobian=False)
+            w = (1 - model.relative_rows) / model.sigma**2
+            scale = (w * fitted * model.brightness).sum(1) / (w * fitted**2).sum(1)
+            x0[:, model.layout.log_scale] = torch.log(scale.to(torch.float64))
 
     def residuals(x: torch.Tensor, jacobian: bool):
         return model.residuals(x, jacobian, lambert_free)

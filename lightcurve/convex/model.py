@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from torch.autograd import forward_ad
 
 from brdf import lommel_seeliger_from_cosines, phase_function
 from filters.attitude import attitude_matrix, axis_angle_to_quaternion, rotate
@@ -164,7 +165,7 @@ class ConvexModel:
         spin : (B, 4) tensor
             ``[λ, β, ω, φ0]`` (rad, rad, rad/s, rad).
         """
-        lam, beta, rate, phi0 = (spin[:, k] for k in range(4))
+        rate, phi0 = spin[:, 2], spin[:, 3]
 
         def pole_matrix(angles: torch.Tensor) -> torch.Tensor:
             return attitude_matrix(pole_quaternion(angles[..., 0], angles[..., 1]))
@@ -264,7 +265,7 @@ class ConvexModel:
             torch.einsum("bnx,bnxp->bnp", g_light, d_light.to(self.dtype))
             + torch.einsum("bnx,bnxp->bnp", g_view, d_view.to(self.dtype))
         )
-        _, d_phase = _value_and_jacfwd(lambda p: self.phase(p[None])[0], params[:, lay.phase])
+        _, d_phase = _value_and_jacfwd(self.phase, params[:, lay.phase])
         jac[..., lay.phase] = d_phase * s_area[..., None]
         if lambert_free:
             jac[..., lay.lambert] = f * (grads[2] @ areas[..., None])[..., 0]
@@ -304,13 +305,19 @@ class ConvexModel:
         k = self.layout.n_coefficients
         coefficients = params[:, :k]
 
-        def regulariser(c: torch.Tensor) -> torch.Tensor:
-            return self.regularisation_scale * self.convexity(self.areas(c[None]))[0]
-
+        areas = self.areas(coefficients)
+        total = areas.sum(dim=1, keepdim=True)
+        vector = areas @ self.normals  # Σ A_i n_i, (B, 3)
+        reg = self.regularisation_scale * vector / total
         if jac is None:
-            reg = self.regularisation_scale * self.convexity(self.areas(coefficients))
             return torch.cat([data_r, reg], dim=1), None
-        reg, d_reg = _value_and_jacfwd(regulariser, coefficients)
+        # ∂A_i/∂c_k = A_i Y_ik: the derivative of Σ A n / Σ A in closed form.
+        weighted = areas[..., None] * self.basis  # (B, F, K)
+        d_vector = torch.einsum("fx,bfk->bxk", self.normals, weighted)
+        d_total = weighted.sum(dim=1)[:, None, :]
+        d_reg = self.regularisation_scale * (
+            d_vector / total[..., None] - vector[..., None] * d_total / total[..., None] ** 2
+        )
         jac_reg = torch.zeros(
             (len(params), 3, self.layout.size), dtype=self.dtype, device=self.device
         )
@@ -318,8 +325,19 @@ class ConvexModel:
         return torch.cat([data_r, reg], 1), torch.cat([-jac / self.sigma[:, None], jac_reg], 1)
 
 
-def _value_and_jacfwd(func, x: torch.Tensor):
-    """Batched value and forward-mode Jacobian of ``func`` over the leading axis of ``x``."""
-    jac = torch.func.vmap(torch.func.jacfwd(func, has_aux=False))(x)
-    value = torch.func.vmap(func)(x)
-    return value, jac
+def _value_and_jacfwd(func, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Value and forward-mode Jacobian of a row-wise function of ``x`` (B, P).
+
+    ``func`` maps each row of ``x`` independently (any output shape (B, …)); one dual-number
+    pass per parameter (``torch.autograd.forward_ad``) gives ∂out/∂x[:, p], stacked last.
+    """
+    columns = []
+    value = None
+    with forward_ad.dual_level():
+        for p in range(x.shape[1]):
+            tangent = torch.zeros_like(x)
+            tangent[:, p] = 1.0
+            primal, derivative = forward_ad.unpack_dual(func(forward_ad.make_dual(x, tangent)))
+            value = primal if value is None else value
+            columns.append(derivative)
+    return value, torch.stack(columns, dim=-1)

@@ -2,10 +2,11 @@
 
 Minimises ``χ² = Σ r²`` for a batch of independent problems at once (pole starts × trial
 periods), each with its own damping. Marquardt's scaled step (Moré 1978):
-``(JᵀJ + μ D) δ = −Jᵀ r`` with ``D`` the largest ``diag(JᵀJ)`` met so far (MINPACK); a
-step that lowers χ² is taken and μ divided by 10, otherwise μ is multiplied by 10. A
-problem stops when an accepted step lowers χ² by less than ``rtol`` relatively (twice in a
-row), when μ exceeds ``1e12``, or after ``max_iter``.
+``(JᵀJ + μ D) δ = −Jᵀ r`` with ``D`` the largest ``diag(JᵀJ)`` met so far (MINPACK). Within
+an iteration μ is multiplied by 10 until the step lowers χ² (each try costs one residual
+evaluation), then the step is taken, μ divided by 10 and the Jacobian recomputed. A problem
+stops when an accepted step lowers χ² by less than ``rtol`` relatively (twice in a row),
+when μ exceeds ``1e12``, or after ``max_iter`` iterations (Jacobian evaluations).
 """
 
 from __future__ import annotations
@@ -83,31 +84,38 @@ def levenberg_marquardt(
         rows = torch.nonzero(active).flatten()
         if len(rows) == 0:
             break
-        h, g = hessian[rows], gradient[rows]
-        diag = torch.where(scaling[rows] > 0, scaling[rows], torch.ones_like(scaling[rows]))
-        system = h + torch.diag_embed(mu[rows, None] * diag)
-        step = torch.linalg.solve(system, -g[..., None])[..., 0]
-        trial = x[rows].clone()
-        trial[:, index] += step
-        if project is not None:
-            trial = project(trial)
-        r_new, jac_new = residuals(trial, True)
-        chi2_new = (r_new * r_new).sum(dim=1)
-        ok = torch.isfinite(chi2_new) & (chi2_new < chi2[rows])
+        # Rejected steps cost one residual evaluation: μ grows until the step is taken.
+        trial, chi2_new, pending = x[rows].clone(), chi2[rows].clone(), torch.arange(len(rows))
+        while len(pending):
+            sub = rows[pending]
+            diag = torch.where(scaling[sub] > 0, scaling[sub], torch.ones_like(scaling[sub]))
+            system = hessian[sub] + torch.diag_embed(mu[sub, None] * diag)
+            step = torch.linalg.solve(system, -gradient[sub][..., None])[..., 0]
+            candidate = x[sub].clone()
+            candidate[:, index] += step
+            if project is not None:
+                candidate = project(candidate)
+            r_new, _ = residuals(candidate, False)
+            value = (r_new * r_new).sum(dim=1)
+            ok = torch.isfinite(value) & (value < chi2[sub])
+            trial[pending[ok]], chi2_new[pending[ok]] = candidate[ok], value[ok]
+            mu[sub[~ok]] *= 10
+            pending = pending[~ok & (mu[sub] < 1e12)]
+        moved = chi2_new < chi2[rows]
+        accepted = rows[moved]
         iterations[rows] += 1
-        accepted, rejected = rows[ok], rows[~ok]
         if len(accepted):
-            gain = (chi2[accepted] - chi2_new[ok]) / chi2[accepted]
+            gain = (chi2[accepted] - chi2_new[moved]) / chi2[accepted]
             quiet[accepted] = torch.where(gain < rtol, quiet[accepted] + 1, 0)
-            x[accepted] = trial[ok]
-            chi2[accepted] = chi2_new[ok]
-            jf = jac_new[ok][..., index].to(x.dtype)
+            x[accepted] = trial[moved]
+            chi2[accepted] = chi2_new[moved]
+            r_acc, jac_acc = residuals(x[accepted], True)
+            jf = jac_acc[..., index].to(x.dtype)
             hessian[accepted] = jf.transpose(1, 2) @ jf
             scaling[accepted] = torch.maximum(
                 scaling[accepted], torch.diagonal(hessian[accepted], dim1=1, dim2=2)
             )
-            gradient[accepted] = (jf.transpose(1, 2) @ r_new[ok].to(x.dtype)[..., None])[..., 0]
+            gradient[accepted] = (jf.transpose(1, 2) @ r_acc.to(x.dtype)[..., None])[..., 0]
             mu[accepted] = (mu[accepted] / 10).clamp_min(1e-9)
-        mu[rejected] *= 10
         active &= (quiet < 2) & (mu < 1e12)
     return LMResult(x, chi2, hessian, iterations, ~active | (quiet >= 2))
