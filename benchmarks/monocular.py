@@ -35,7 +35,7 @@ from benchmarks._machine import machine_info
 from filters.attitude import attitude_angle
 from filters.monocular import FORMS, MonocularEKF, observability_at
 from lightcurve.atomic import atomic_write_json
-from lightcurve.commands.monocular import (
+from lightcurve.scenarios.monocular import (
     convergence,
     load_monocular_scenario,
     monte_carlo_table,

@@ -39,7 +39,6 @@ from filters.attitude import quaternion_multiply, random_quaternion, rotation_ve
 from filters.lander import STRATEGIES
 from filters.planner import covariance_measure, forecast, propagate_schedule
 from lightcurve import io
-from lightcurve.commands.plan import Study, load_scenario, run_study, summarize
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.observations import Observations
 from lightcurve.photometric_planning import (
@@ -48,6 +47,7 @@ from lightcurve.photometric_planning import (
     ScheduleComparison,
     compare_schedules,
 )
+from lightcurve.scenarios.landing import Study, load_scenario, run_study, summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "data" / "scenarios" / "eros_landing.toml"

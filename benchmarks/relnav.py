@@ -27,7 +27,7 @@ import numpy as np
 from benchmarks._machine import machine_info
 from filters.relnav import ApproachScenario, simulate_approach
 from lightcurve.atomic import atomic_write_json
-from lightcurve.commands.relnav import load_relnav_scenario
+from lightcurve.scenarios.relnav import load_relnav_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "data" / "scenarios" / "relnav_approach.toml"
 

@@ -32,7 +32,7 @@ from filters.monocular import (
     reference_frame_truth,
     state_derivative,
 )
-from lightcurve.commands.monocular import (
+from lightcurve.scenarios.monocular import (
     convergence,
     load_monocular_scenario,
     run_study,

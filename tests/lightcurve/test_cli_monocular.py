@@ -12,8 +12,8 @@ import pytest
 
 from filters.attitude import attitude_angle, propagate
 from lightcurve.cli import main
-from lightcurve.commands.monocular import load_monocular_scenario, read_measurements
 from lightcurve.scenarios import ScenarioError
+from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "scenarios"
 CONTRACT = {

@@ -12,7 +12,7 @@ import pytest
 
 from filters.gravity import EROS_MU
 from lightcurve.cli import main
-from lightcurve.commands.plan import load_scenario
+from lightcurve.scenarios.landing import load_scenario
 
 EROS = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "eros_landing.toml"
 STRATEGIES = ("every_step", "seed", "improved")

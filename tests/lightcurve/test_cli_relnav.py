@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from lightcurve.cli import main
-from lightcurve.commands.relnav import load_relnav_scenario
+from lightcurve.scenarios.relnav import load_relnav_scenario
 
 APPROACH = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "relnav_approach.toml"
 CONTRACT = {"position_rms_m", "velocity_rms_m_s", "outliers_injected", "outliers_downweighted"}

@@ -13,7 +13,7 @@ import pytest
 
 from filters.attitude import tanh_from_inertia
 from lightcurve.cli import main
-from lightcurve.commands.stereo import load_stereo_scenario
+from lightcurve.scenarios.stereo import load_stereo_scenario
 
 NOMINAL = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "stereo_nominal.toml"
 RTMSE_KEYS = {"attitude_deg", "omega_rad_s", "position_m", "velocity_m_s", "inertia_k"}

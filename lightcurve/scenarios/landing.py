@@ -1,0 +1,253 @@
+"""Small-body landing scenarios for observation planning (seed 001): the scenario file, the
+Monte Carlo study of the three imaging strategies, and its summary.
+
+The ``lightcurve plan`` command is a thin layer over this module.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from filters.camera import PinholeCamera
+from filters.gravity import SphericalHarmonicGravity
+from filters.lander import (
+    STRATEGIES,
+    DescentTrajectory,
+    Draws,
+    LanderDynamics,
+    LanderModel,
+    LandingScenario,
+    LandmarkMap,
+    NadirPointing,
+    NavigationRun,
+    SiteFrame,
+    anchor_pixels,
+    compare_strategies,
+    draw,
+    error_statistics,
+)
+from lightcurve.scenarios import TomlTable, load_toml
+
+PAPER = {
+    "images_used": {"seed": 55, "every_step": 104},
+    "position_error_std_m": {"seed": 0.0082, "every_step": 0.0068},
+    "attitude_error_std_deg": {"seed": 0.23, "every_step": 0.1932},
+}
+
+
+def _vector(table: TomlTable, field: str, size: int = 3) -> np.ndarray:
+    return table.array(field, (size,))
+
+
+def load_scenario(path: str | Path) -> LandingScenario:
+    """Read a landing scenario TOML file (format in ``docs/planner.md``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    LandingScenario
+        In SI units (degrees and hours converted here).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, table and field of the first problem.
+    """
+    root = load_toml(path)
+    body, site_t, traj = root.table("body"), root.table("site"), root.table("trajectory")
+    cam_t, marks, noise = root.table("camera"), root.table("landmarks"), root.table("noise")
+    filt, plan = root.table("filter"), root.table("planner")
+
+    body.string("name", "")
+    degree = body.integer("gravity_degree", minimum=0)
+    rows = body.array("gravity_coefficients", (None, 4), [])
+    try:
+        gravity = SphericalHarmonicGravity.from_coefficients(
+            body.number("mu_m3_s2", positive=True),
+            body.number("reference_radius_m", positive=True),
+            rows.tolist(),
+            degree,
+        )
+    except ValueError as exc:
+        raise body.error("gravity_coefficients", str(exc)) from None
+    spin = np.array(
+        [0.0, 0.0, 2 * math.pi / (3600.0 * body.number("spin_period_h", positive=True))]
+    )
+
+    try:
+        site = SiteFrame(_vector(site_t, "position_m"))
+    except ValueError as exc:
+        raise site_t.error("position_m", str(exc)) from None
+    duration = traj.number("duration_s", positive=True)
+    dt = traj.number("step_s", positive=True)
+    steps = round(duration / dt)
+    if not math.isclose(steps * dt, duration, rel_tol=1e-9) or steps < 2:
+        raise traj.error("step_s", f"must divide duration_s={duration} into at least 2 steps")
+    trajectory = DescentTrajectory(
+        _vector(traj, "start_position_m"),
+        _vector(traj, "start_velocity_m_s"),
+        _vector(traj, "end_position_m"),
+        _vector(traj, "end_velocity_m_s"),
+        duration,
+    )
+    periods = _vector(traj, "wobble_period_s")
+    if np.any(periods <= 0):
+        raise traj.error("wobble_period_s", "periods must be positive")
+    pointing = NadirPointing(site, np.radians(_vector(traj, "wobble_amplitude_deg")), periods)
+
+    try:
+        camera = PinholeCamera.from_fov(
+            cam_t.number("fov_deg", positive=True), cam_t.integer("pixels", minimum=16)
+        )
+    except ValueError as exc:
+        raise cam_t.error("fov_deg", str(exc)) from None
+    per_image = cam_t.integer("landmarks_per_image", minimum=3)
+
+    extent = marks.array("extent_m", (4,))
+    spacing = marks.number("spacing_m", positive=True)
+    cells = (extent[1] - extent[0]) * (extent[3] - extent[2]) / spacing**2
+    if not 3 <= cells <= 5e6:
+        raise marks.error("spacing_m", f"gives {cells:.3g} landmarks over extent_m (3 … 5e6)")
+    try:
+        landmarks = LandmarkMap.jittered_grid(
+            site,
+            tuple(extent),
+            spacing,
+            marks.number("relief_m", minimum=0.0),
+            np.random.default_rng(marks.integer("seed", minimum=0)),
+        )
+    except ValueError as exc:
+        raise marks.error("extent_m", str(exc)) from None
+
+    model = LanderModel(
+        dynamics=LanderDynamics(gravity, spin).feedforward(trajectory, site),
+        pointing=pointing,
+        landmarks=landmarks,
+        camera=camera,
+        pixel_sigma=cam_t.number("pixel_noise_px", positive=True),
+        anchors=anchor_pixels(camera, per_image),
+        dt=dt,
+        acceleration_psd=noise.number("acceleration_m_s2_per_sqrt_hz", minimum=0.0) ** 2,
+        attitude_psd=math.radians(noise.number("attitude_deg_per_sqrt_s", minimum=0.0)) ** 2,
+        estimate_attitude=filt.boolean("estimate_attitude", True),
+    )
+    sigma = np.concatenate(
+        [
+            _vector(filt, "initial_position_error_m"),
+            _vector(filt, "initial_velocity_error_m_s"),
+            np.radians(_vector(filt, "initial_attitude_error_deg")),
+        ]
+    )
+    if np.any(sigma[: model.dim] <= 0):
+        raise filt.error("initial_position_error_m", "initial error sigmas must be positive")
+    settle = plan.number("settle_time_s", minimum=0.0)
+    settle_step = math.ceil(settle / dt - 1e-9)
+    if settle_step >= steps:
+        raise plan.error("settle_time_s", f"must be before the end of the descent ({duration} s)")
+    scenario = LandingScenario(
+        model=model,
+        trajectory=trajectory,
+        initial_sigma=sigma,
+        steps=steps,
+        settle_step=settle_step,
+        s_max=plan.integer("s_max", minimum=1),
+        iterations=filt.integer("iterations", 10, minimum=1),
+    )
+    for table in (root, body, site_t, traj, cam_t, marks, noise, filt, plan):
+        table.check_unknown()
+    return scenario
+
+
+@dataclass(frozen=True)
+class Study:
+    """Result of :func:`run_study`: the draws, each strategy's run and its statistics."""
+
+    scenario: LandingScenario
+    draws: Draws
+    runs: dict[str, NavigationRun]
+    statistics: dict[str, dict[str, np.ndarray]]
+    seed: int
+    seconds: float
+
+
+def run_study(scenario: LandingScenario, runs: int, seed: int) -> Study:
+    """Draw ``runs`` descents with ``numpy.random.default_rng(seed)`` and compare strategies."""
+    if runs < 1:
+        raise ValueError(f"--runs must be >= 1, got {runs}")
+    start = time.perf_counter()
+    draws = draw(scenario, runs, np.random.default_rng(seed))
+    navigation = compare_strategies(scenario, draws)
+    stats = {name: error_statistics(scenario, run, draws) for name, run in navigation.items()}
+    return Study(scenario, draws, navigation, stats, seed, time.perf_counter() - start)
+
+
+def _spread(values: np.ndarray) -> dict[str, Any]:
+    values = np.asarray(values, dtype=float)
+    spread = float(np.std(values, axis=0, ddof=1)) if len(values) > 1 else 0.0
+    return {"mean": float(np.mean(values, axis=0)), "spread": spread}
+
+
+def summarize(study: Study) -> dict[str, Any]:
+    """The ``summary.json`` content of a study (see the module docstring)."""
+    scenario = study.scenario
+    dt = scenario.model.dt
+    total = scenario.steps + 1
+    strategies: dict[str, Any] = {}
+    for name in STRATEGIES:
+        stats, run = study.statistics[name], study.runs[name]
+        images = stats["images"]
+        entry: dict[str, Any] = {
+            "images_used": {
+                **_spread(images),
+                "min": int(images.min()),
+                "max": int(images.max()),
+            },
+            "images_total": total,
+        }
+        for key, unit in (("position", "m"), ("velocity", "m_s"), ("attitude", "deg")):
+            if key == "attitude" and not scenario.model.estimate_attitude:
+                entry["attitude_error_std_deg"] = None
+                continue
+            block = _spread(stats[f"{key}_std"])
+            block["per_axis_mean"] = np.mean(stats[f"{key}_std_axes"], axis=0).tolist()
+            entry[f"{key}_error_std_{unit}"] = block
+        entry["position_error_rms_m"] = _spread(stats["position_rms"])
+        entry["observation_times_s"] = [
+            (np.flatnonzero(run.taken[:, b]) * dt).tolist() for b in range(run.taken.shape[1])
+        ]
+        strategies[name] = entry
+    every, seed_s, improved = (study.statistics[n] for n in STRATEGIES)
+    comparison = {
+        "seed_images_fraction": float(seed_s["images"].mean() / every["images"].mean()),
+        "seed_vs_every_step_position_std": float(
+            seed_s["position_std"].mean() / every["position_std"].mean()
+        ),
+        "improved_vs_seed_position_std": float(
+            improved["position_std"].mean() / seed_s["position_std"].mean()
+        ),
+        "improved_vs_seed_position_rms": float(
+            improved["position_rms"].mean() / seed_s["position_rms"].mean()
+        ),
+        "improved_lower_std_fraction_of_runs": float(
+            np.mean(improved["position_std"] < seed_s["position_std"])
+        ),
+    }
+    return {
+        "runs": int(study.draws.truth.shape[1]),
+        "seed": study.seed,
+        "settle_time_s": scenario.settle_step * dt,
+        "s_max": scenario.s_max,
+        "strategies": strategies,
+        "comparison": comparison,
+        "paper": PAPER,
+        "elapsed_s": study.seconds,
+    }
