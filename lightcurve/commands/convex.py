@@ -11,7 +11,8 @@ the deepest minima with the full model.
 Writes OUT/summary.json (``solutions``: best first, each with lambda_deg, beta_deg,
 period_h, rms, chi2, uncertainties), OUT/shape.obj (the best convex polyhedron, Minkowski
 reconstruction, volume 1 m³ — `lightcurve shapes add NAME OUT/shape.obj` accepts it),
-OUT/shape.png, OUT/fit.csv (observed and model brightness) and, after a scan, OUT/scan.csv.
+OUT/shape.png, OUT/fit.csv and OUT/fit.png (observed and model brightness) and, after a
+scan, OUT/scan.csv.
 """
 
 from __future__ import annotations
@@ -142,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
         ),
         args.out / "fit.csv",
     )
+    _plot_fit(data, best.model, args.out / "fit.png")
     summary = {
         "files": [str(p) for p in args.files],
         "frame": "ecliptic J2000 (DAMIT files) or the files' inertial frame",
@@ -196,6 +198,36 @@ def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
         ):
             kept.append(s)
     return kept
+
+
+def _plot_fit(data, model: np.ndarray, path: Path, panels: int = 6) -> None:
+    """Observed and model brightness of the longest light curves, against hours in the night."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lightcurve.atomic import atomic_path
+
+    counts = np.bincount(data.curve, minlength=data.n_curves)
+    chosen = np.sort(np.argsort(counts)[::-1][:panels])
+    columns = min(3, len(chosen))
+    rows = math.ceil(len(chosen) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(4 * columns, 2.8 * rows), squeeze=False)
+    for ax, label in zip(axes.flat, chosen, strict=False):
+        rows_ = data.curve == label
+        hours = (data.mjd[rows_] - data.mjd[rows_].min()) * 24.0
+        ax.errorbar(hours, data.brightness[rows_], data.sigma[rows_], fmt=".", ms=3, lw=0.5)
+        ax.plot(hours, model[rows_], "-", color="C3", lw=1.0)
+        ax.set_title(f"curve {label}, MJD {data.mjd[rows_].min():.1f}", fontsize=9)
+        ax.set_xlabel("hours")
+    for ax in list(axes.flat)[len(chosen) :]:
+        ax.set_visible(False)
+    axes[0, 0].set_ylabel("relative brightness")
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=90)
+    plt.close(fig)
 
 
 def _write_shape(solution, args: argparse.Namespace) -> None:

@@ -92,7 +92,7 @@ def test_convex_command_writes_solutions_shape_and_fit(ariadne_subset, tmp_path,
     assert shape.is_watertight and shape.volume == pytest.approx(1.0, rel=1e-6)
     fitted = pd.read_csv(out / "fit.csv")
     assert {"observed", "model", "mjd"} <= set(fitted.columns)
-    assert (out / "shape.png").exists()
+    assert (out / "shape.png").exists() and (out / "fit.png").exists()
     assert "pole (" in capsys.readouterr().out
     # The shape library accepts the model.
     library = str(tmp_path / "library")
