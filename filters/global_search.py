@@ -13,11 +13,11 @@ measurement epoch, which determines the whole trajectory under torque-free motio
    misplaced glint does not dominate). Screening is successive: all candidates on a few
    epochs, the best fraction on more.
 2. **Refine** the best few hundred by Levenberg–Marquardt, batched: every candidate's
-   residual vector and its Jacobian with respect to
-   ``u = [δθ (3, body-frame rotation vector, q = exp(δθ) ⊗ q_c), ω (3), k (2, optional)]``
-   come from one forward-mode automatic-differentiation pass of the propagation and the
-   renderer (``torch.autograd.forward_ad``), each candidate solving its own damped normal
-   equations ``(JᵀJ + μ diag JᵀJ) Δu = −Jᵀr`` (Marquardt 1963). The window then grows
+   residual vector and its Jacobian with respect to ``[η (3, body-frame rotation of the
+   initial attitude), ω (3), k (2, optional)]`` come from one reverse-mode autograd pass
+   of the renderer for all candidates and epochs and an exact attitude sensitivity (see
+   :func:`residual_jacobian`); each candidate solves its own damped normal equations
+   ``(JᵀJ + μ diag JᵀJ) Δ = −Jᵀr`` (Marquardt 1963). The window then grows
    (continuation) and the surviving candidates are refined again, so that the rate
    estimate improves before the long-arc attitude drift becomes non-linear.
 3. **Rank** the refined candidates by ``χ² = Σ r²`` on the final window, merge duplicates
@@ -45,7 +45,6 @@ from filters.attitude import (
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
-    random_quaternion,
     rotation_vector_to_quaternion,
 )
 from filters.ukf import propagate_torque_free
@@ -55,13 +54,13 @@ __all__ = [
     "Prior",
     "SearchResult",
     "global_search",
+    "low_discrepancy_states",
     "prior_candidates",
     "refine",
     "residual_jacobian",
     "screen",
     "uniform_candidates",
     "uniform_rates",
-    "unpack",
 ]
 
 #: ``measure(q (N, E, 4), epochs (E,), shape (N,)) → (N, E)`` predicted measurements.
@@ -70,9 +69,43 @@ Measure = Callable[[torch.Tensor, np.ndarray, torch.Tensor], torch.Tensor]
 
 def uniform_rates(n: int, omega_max: float, rng: np.random.Generator) -> np.ndarray:
     """Body rates uniform in the ball ``|ω| ≤ omega_max`` (rad/s), shape (n, 3)."""
-    direction = rng.standard_normal((n, 3))
-    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    return direction * omega_max * rng.random((n, 1)) ** (1.0 / 3.0)
+    return _ball(rng.random((n, 3)), omega_max)
+
+
+def _ball(u: np.ndarray, radius: float) -> np.ndarray:
+    """Map uniform ``u ∈ [0, 1)³`` to the ball: radius ``R u₀^{1/3}``, direction from
+    ``cos θ = 1 − 2u₁``, ``φ = 2π u₂`` (volume preserving)."""
+    r = radius * u[:, 0] ** (1.0 / 3.0)
+    cos_t = 1.0 - 2.0 * u[:, 1]
+    sin_t = np.sqrt(np.clip(1.0 - cos_t**2, 0.0, None))
+    phi = 2.0 * np.pi * u[:, 2]
+    return r[:, None] * np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=1)
+
+
+def _shoemake(u: np.ndarray) -> np.ndarray:
+    """Map uniform ``u ∈ [0, 1)³`` to a uniform attitude (Shoemake 1992, *Graphics Gems
+    III*): ``q = [√(1−u₀) sin 2πu₁, √(1−u₀) cos 2πu₁, √u₀ sin 2πu₂, √u₀ cos 2πu₂]``."""
+    a, b = np.sqrt(1.0 - u[:, 0]), np.sqrt(u[:, 0])
+    t1, t2 = 2.0 * np.pi * u[:, 1], 2.0 * np.pi * u[:, 2]
+    return np.stack([a * np.sin(t1), a * np.cos(t1), b * np.sin(t2), b * np.cos(t2)], axis=1)
+
+
+def low_discrepancy_states(
+    n: int, omega_max: float, rng: np.random.Generator, extra_dims: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Attitudes uniform on SO(3) and rates uniform in the ball from a scrambled Sobol'
+    sequence (scipy.stats.qmc): the gaps a random sample leaves in the 6-D search space
+    shrink, so fewer candidates cover it equally well.
+
+    Returns
+    -------
+    q : (n, 4), omega : (n, 3), extra : (n, extra_dims) uniform in [0, 1)
+    """
+    from scipy.stats import qmc
+
+    sobol = qmc.Sobol(6 + extra_dims, scramble=True, seed=rng)
+    u = sobol.random_base2(max(0, math.ceil(math.log2(n))))[:n]
+    return _shoemake(u[:, :3]), _ball(u[:, 3:6], omega_max), u[:, 6:]
 
 
 @dataclass(frozen=True)
@@ -112,7 +145,7 @@ class Prior:
         """Whitened deviations ``[rotvec(q ⊗ q̄⁻¹)/σ_θ, (ω − ω̄)/σ_ω]``, shape (N, 6)."""
         q_bar = torch.as_tensor(np.asarray(self.q, float), dtype=q.dtype)
         dtheta = quaternion_to_rotation_vector(quaternion_multiply(q, quaternion_conjugate(q_bar)))
-        sigma_w = torch.as_tensor(np.broadcast_to(self.omega_sigma, (3,)), dtype=q.dtype)
+        sigma_w = torch.as_tensor(np.broadcast_to(self.omega_sigma, (3,)).copy(), dtype=q.dtype)
         w_bar = torch.as_tensor(np.asarray(self.omega, float), dtype=q.dtype)
         return torch.cat([dtheta / self.attitude_sigma, (omega - w_bar) / sigma_w], dim=1)
 
@@ -300,19 +333,25 @@ def uniform_candidates(
     k_range: float = 1.5,
 ) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor]:
     """Candidates uniform on SO(3), in the rate ball ``|ω| ≤ omega_max``, over the shapes
-    (and in ``[−k_range, k_range]²`` for the tanh inertia when it is estimated).
+    (and in ``[−k_range, k_range]²`` for the tanh inertia when it is estimated), from a
+    scrambled Sobol' sequence (:func:`low_discrepancy_states`).
 
     Returns
     -------
     q0 (n, 4), omega0 (n, 3), k (n, 2) or None, shape (n,) : tensors
     """
-    q = torch.as_tensor(random_quaternion(n, rng), dtype=problem.dtype)
-    w = torch.as_tensor(uniform_rates(n, omega_max, rng), dtype=problem.dtype)
-    shape = torch.as_tensor(rng.integers(0, n_shapes, n), dtype=torch.long)
+    extra = 3 if problem.estimate_inertia else 1
+    q, w, u = low_discrepancy_states(n, omega_max, rng, extra)
+    shape = torch.as_tensor(np.minimum((u[:, 0] * n_shapes).astype(int), n_shapes - 1))
     k = None
     if problem.estimate_inertia:
-        k = torch.as_tensor(rng.uniform(-k_range, k_range, (n, 2)), dtype=q.dtype)
-    return q, w, k, shape
+        k = torch.as_tensor(k_range * (2.0 * u[:, 1:3] - 1.0), dtype=problem.dtype)
+    return (
+        torch.as_tensor(q, dtype=problem.dtype),
+        torch.as_tensor(w, dtype=problem.dtype),
+        k,
+        shape,
+    )
 
 
 def prior_candidates(
@@ -351,13 +390,16 @@ def screen(
     batch: int = 8192,
     nu: float = 4.0,
     prior: Prior | None = None,
+    tolerance: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor]:
     """Successive screening: returns the ``keep`` candidates of lowest misfit.
 
     Stage ``i`` evaluates the survivors on ``stages[i]`` epochs spread over ``duration``
     seconds and keeps the best ``fraction`` of them (at least ``keep``). The misfit is the
     Student-t negative log-likelihood of the normalised residuals (plus ``½|r_prior|²``
-    with a prior).
+    with a prior). With ``tolerance > 0`` the residuals are normalised by
+    ``√(σ² + tolerance²)`` instead of ``σ``: a candidate 10° off then scores better than one
+    90° off instead of both scoring "terrible", which widens the basin the screening sees.
 
     Parameters
     ----------
@@ -368,6 +410,8 @@ def screen(
         Window (s).
     keep : int
         Survivors of the last stage.
+    tolerance : float
+        Model tolerance added in quadrature to the measurement errors (measurement units).
 
     Returns
     -------
@@ -380,7 +424,11 @@ def screen(
         for s in range(0, len(q), batch):
             part = slice(s, s + batch)
             kk = None if k is None else k[part]
-            cost = _robust_cost(problem.residuals(q[part], w[part], kk, shape[part], epochs), nu)
+            r = problem.residuals(q[part], w[part], kk, shape[part], epochs)
+            if tolerance > 0.0:
+                sigma = problem.sigma[epochs]
+                r = r * torch.as_tensor(sigma / np.sqrt(sigma**2 + tolerance**2), dtype=r.dtype)
+            cost = _robust_cost(r, nu)
             if prior is not None:
                 cost = cost + 0.5 * (prior.residuals(q[part], w[part]) ** 2).sum(dim=1)
             costs.append(cost)
@@ -392,64 +440,78 @@ def screen(
     return q, w, k, shape
 
 
-def unpack(u: torch.Tensor, q_center: torch.Tensor) -> tuple[torch.Tensor, Any, Any]:
-    """``u = [δθ, ω(, k)]`` → ``(q = exp(δθ) ⊗ q_center, ω, k or None)``."""
-    q = quaternion_multiply(rotation_vector_to_quaternion(u[:, :3]), q_center)
-    return q, u[:, 3:6], (u[:, 6:8] if u.shape[1] > 6 else None)
-
-
 def residual_jacobian(
     problem: BatchProblem,
-    u: torch.Tensor,
-    q_center: torch.Tensor,
+    q0: torch.Tensor,
+    v: torch.Tensor,
     shape: torch.Tensor,
     epochs: Any,
     prior: Prior | None = None,
+    t_start: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Residuals ``r (N, E)`` and their Jacobian ``∂r/∂u (N, E, p)`` at ``u``.
+    """Residuals ``r (N, E)`` and their Jacobian ``(N, E, p)`` with respect to
+    ``[η, ω(, k)]``, ``η`` a body-frame rotation of the initial attitude
+    (``q₀ ← exp(η) ⊗ q₀``).
 
-    ``J = ∂r/∂q(t_e) · ∂q(t_e)/∂u``. The first factor comes from ONE reverse-mode autograd
+    ``J = ∂r/∂q(t_e) · ∂q(t_e)/∂x``. The first factor comes from ONE reverse-mode autograd
     pass through the measurement function for all candidates and epochs: ``r[b, e]``
     depends on ``q[b, e]`` only, so the gradient of ``Σ r`` holds every
-    ``∂r[b, e]/∂q[b, e]``. The second is the sensitivity of the RK4 map, by central
-    differences of ``2p + 1`` propagated replicas (steps 1e-5 rad, 1e-7 rad/s, 1e-5 for
-    ``k``; no rendering). With a prior, its whitened residuals (6 more rows, Jacobian
-    taken as ``diag(1/σ)``) are appended.
+    ``∂r[b, e]/∂q[b, e]``. For the second: the kinematics ``q̇ = ½ [ω, 0] ⊗ q`` are linear
+    in ``q`` and torque-free rates do not depend on the attitude, so
+    ``q(t) = Φ(t) ⊗ q₀`` with ``Φ = q(t) ⊗ q₀⁻¹`` and
+    ``∂q(t)/∂η_j = Φ(t) ⊗ [½ e_j, 0] ⊗ q₀`` exactly, without propagation; the rate and
+    inertia sensitivities are central differences of the RK4 map (steps 1e-7 rad/s and
+    1e-5, ``2(p − 3)`` propagated replicas, no rendering). With a prior, its whitened
+    residuals (6 more rows, Jacobian ``diag(1/σ)``) are appended.
 
     Parameters
     ----------
     problem : BatchProblem
-    u : (N, p) tensor
-        ``[δθ, ω(, k)]`` about ``q_center``.
-    q_center : (N, 4) tensor
+    q0 : (N, 4) tensor
+        Attitudes at ``t_start``.
+    v : (N, p − 3) tensor
+        ``[ω(, k)]``.
     shape : (N,) long tensor
     epochs : (E,) int array
     prior : Prior, optional
+    t_start : float
+        Epoch of the states (s, on the problem's time axis).
 
     Returns
     -------
     r : (N, E[+6]) tensor
     jacobian : (N, E[+6], p) tensor
     """
-    m, p = u.shape
-    eye = torch.eye(p, dtype=u.dtype)
-    fd_step = torch.tensor([1e-5] * 3 + [1e-7] * 3 + [1e-5] * (p - 6), dtype=u.dtype)
-    steps = torch.cat([torch.zeros(1, p, dtype=u.dtype), eye * fd_step, -eye * fd_step])
-    replicas = (u[:, None] + steps).reshape(-1, p)
-    q, w, kk = unpack(replicas, q_center.repeat_interleave(len(steps), dim=0))
-    traj = problem.trajectory(q, w, kk, shape.repeat_interleave(len(steps)), epochs)
+    m, d = v.shape
+    fd_step = torch.tensor([1e-7] * 3 + [1e-5] * (d - 3), dtype=v.dtype)
+    eye = torch.diag(fd_step)
+    steps = torch.cat([torch.zeros(1, d, dtype=v.dtype), eye, -eye])
+    replicas = (v[:, None] + steps).reshape(-1, d)
+    traj = problem.trajectory(
+        q0.repeat_interleave(len(steps), dim=0),
+        replicas[:, :3],
+        replicas[:, 3:] if d > 3 else None,
+        shape.repeat_interleave(len(steps)),
+        epochs,
+        t_start,
+    )
     traj = traj.reshape(m, len(steps), *traj.shape[1:])
-    tangent = (traj[:, 1 : p + 1] - traj[:, p + 1 :]) / (2.0 * fd_step[:, None, None])
-    primal = traj[:, 0].detach().requires_grad_(True)
+    base = traj[:, 0]
+    rate_tangent = (traj[:, 1 : d + 1] - traj[:, d + 1 :]) / (2.0 * fd_step[:, None, None])
+    phi = quaternion_multiply(base, quaternion_conjugate(q0)[:, None])
+    half = torch.cat([0.5 * torch.eye(3, dtype=v.dtype), torch.zeros(3, 1, dtype=v.dtype)], 1)
+    left = quaternion_multiply(half[None], q0[:, None])
+    attitude_tangent = quaternion_multiply(phi[:, None], left[:, :, None])
+    tangent = torch.cat([attitude_tangent, rate_tangent], dim=1)
+    primal = base.detach().requires_grad_(True)
     with torch.enable_grad():
         r = problem.residuals_of(primal, shape, epochs)
         (gradient,) = torch.autograd.grad(r.sum(), primal)
     r, jac = r.detach(), torch.einsum("nec,npec->nep", gradient, tangent)
     if prior is None:
         return r, jac
-    q, w, _ = unpack(u, q_center)
-    root = torch.sqrt(prior.information(p)[:6]).to(u.dtype)
-    return torch.cat([r, prior.residuals(q, w)], dim=1), torch.cat(
+    root = torch.sqrt(prior.information(d + 3)[:6]).to(v.dtype)
+    return torch.cat([r, prior.residuals(q0, v[:, :3])], dim=1), torch.cat(
         [jac, root.expand(m, *root.shape)], dim=1
     )
 
@@ -465,8 +527,9 @@ def refine(
     damping: float = 1e-2,
     prior: Prior | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor, torch.Tensor]:
-    """Batched Levenberg–Marquardt on ``u = [δθ, ω(, k)]`` (maximum a posteriori with a
-    prior), Jacobians from :func:`residual_jacobian`.
+    """Batched Levenberg–Marquardt on ``[η, ω(, k)]`` (maximum a posteriori with a prior),
+    Jacobians from :func:`residual_jacobian`; each accepted step turns the attitude,
+    ``q₀ ← exp(Δη) ⊗ q₀``.
 
     Parameters
     ----------
@@ -490,21 +553,14 @@ def refine(
     chi2 : (N,) tensor
         ``Σ r²`` on the window (prior term included).
     covariance : (N, p, p) tensor
-        ``(JᵀJ)⁻¹`` at the solution (the posterior covariance with a prior).
+        ``(JᵀJ)⁻¹`` of ``[η (rad, body frame), ω(, k)]`` at the solution (the posterior
+        covariance with a prior).
     """
     n = len(q0)
-    q_center = q0.detach().clone()
-    parts = [torch.zeros(n, 3, dtype=q0.dtype), omega0.detach()]
-    if problem.estimate_inertia:
-        parts.append(k.detach())
-    u = torch.cat(parts, dim=1)
+    q = q0.detach().clone()
+    v = omega0.detach() if k is None else torch.cat([omega0.detach(), k.detach()], dim=1)
     mu = torch.full((n,), damping, dtype=q0.dtype)
-
-    def linearise(u_: torch.Tensor, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return residual_jacobian(problem, u_, q_center[rows], shape[rows], epochs, prior)
-
-    rows = torch.arange(n)
-    r, jac = linearise(u, rows)
+    r, jac = residual_jacobian(problem, q, v, shape, epochs, prior)
     chi2 = (r * r).sum(dim=1)
     for _ in range(iterations):
         jtj = jac.transpose(1, 2) @ jac
@@ -512,20 +568,49 @@ def refine(
         scaled = jtj + mu[:, None, None] * torch.diag_embed(
             torch.diagonal(jtj, dim1=1, dim2=2) + 1e-12
         )
-        trial = u + torch.nan_to_num(-torch.linalg.solve(scaled, jtr))
+        step = torch.nan_to_num(-torch.linalg.solve(scaled, jtr))
+        q_trial = quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), q)
+        v_trial = v + step[:, 3:]
         # The trial point is linearised at once: accepted steps need no second pass.
-        r_trial, jac_trial = linearise(trial, rows)
+        r_trial, jac_trial = residual_jacobian(problem, q_trial, v_trial, shape, epochs, prior)
         chi2_trial = torch.nan_to_num((r_trial * r_trial).sum(dim=1), nan=math.inf)
         better = chi2_trial < chi2
-        u = torch.where(better[:, None], trial, u)
+        q = torch.where(better[:, None], q_trial, q)
+        v = torch.where(better[:, None], v_trial, v)
         r = torch.where(better[:, None], r_trial, r)
         jac = torch.where(better[:, None, None], jac_trial, jac)
         chi2 = torch.where(better, chi2_trial, chi2)
         mu = torch.where(better, mu / 3.0, mu * 4.0).clamp(1e-9, 1e9)
     jtj = jac.transpose(1, 2) @ jac
     covariance = torch.linalg.pinv(jtj, hermitian=True)
-    q, w, kk = unpack(u, q_center)
-    return q, w, kk, chi2, covariance
+    return q, v[:, :3], (v[:, 3:] if v.shape[1] > 3 else None), chi2, covariance
+
+
+def _with_twins(problem, twin, q, w, k, shape, chi2, covariance, epochs, iterations, prior):
+    """Append the refined twins of the candidates to the candidate set."""
+    q2, w2, has = twin(q.numpy(), w.numpy(), shape.numpy())
+    rows = torch.as_tensor(np.flatnonzero(has))
+    if len(rows) == 0:
+        return q, w, k, shape, chi2, covariance
+    k2 = None if k is None else k[rows]
+    q2, w2, k2, chi2_2, cov2 = refine(
+        problem,
+        torch.as_tensor(q2[has], dtype=q.dtype),
+        torch.as_tensor(w2[has], dtype=w.dtype),
+        k2,
+        shape[rows],
+        epochs,
+        iterations,
+        prior=prior,
+    )
+    return (
+        torch.cat([q, q2]),
+        torch.cat([w, w2]),
+        None if k is None else torch.cat([k, k2]),
+        torch.cat([shape, shape[rows]]),
+        torch.cat([chi2, chi2_2]),
+        torch.cat([covariance, cov2]),
+    )
 
 
 def _distinct(
@@ -550,16 +635,20 @@ def _distinct(
 
 def global_search(
     problem: BatchProblem,
-    n_candidates: int = 100_000,
+    n_candidates: int = 20_000,
     omega_max: float = math.radians(5.0),
     n_shapes: int = 1,
     seed: int | np.random.Generator | None = None,
     prior: Prior | None = None,
-    screen_duration: float = 60.0,
-    windows: Sequence[float] = (60.0, 180.0, 600.0),
-    keep: Sequence[int] = (256, 48, 12),
-    max_epochs: int = 120,
+    screen_duration: float = 30.0,
+    windows: Sequence[float] = (30.0, 90.0, 300.0),
+    keep: Sequence[int] = (256, 24, 6),
+    max_epochs: int = 90,
     iterations: int = 15,
+    tolerance: float = 0.0,
+    twin: Callable[[np.ndarray, np.ndarray, np.ndarray], tuple] | None = None,
+    rounds: int = 1,
+    good_fit: float = 2.0,
     distinct_angle: float = math.radians(3.0),
     distinct_rate: float = math.radians(0.05),
     progress: Callable[[str], None] | None = None,
@@ -570,7 +659,7 @@ def global_search(
     ----------
     problem : BatchProblem
     n_candidates : int
-        Candidates screened (per shape with a prior).
+        Candidates screened per round (per shape with a prior).
     omega_max : float
         Radius of the rate ball (rad/s) of uniform candidates.
     n_shapes : int
@@ -580,7 +669,8 @@ def global_search(
         Draw the candidates from this Gaussian prior (for every shape) instead of
         uniformly, and refine maximum a posteriori.
     screen_duration : float
-        Window of the screening (s).
+        Window of the screening (s). Short enough that a candidate's rate error does not
+        turn into a large attitude error within it.
     windows : sequence of float
         Growing refinement windows (s); the last one is the window of the returned χ².
     keep : sequence of int
@@ -589,6 +679,20 @@ def global_search(
         Measurements used per window (spread evenly over it).
     iterations : int
         LM iterations per window.
+    tolerance : float
+        Screening tolerance (see :func:`screen`).
+    twin : callable, optional
+        ``twin(q, ω, shape) → (q', ω', has_twin)``: states that fit short arcs as well
+        as the given ones (the mirror ambiguity of mirror-symmetric shapes,
+        :meth:`filters.symmetry.SymmetryGroup.mirror_twin`). After the first refinement
+        the twins of the survivors are refined too, so both members of every ambiguous
+        pair reach the longer windows, where the data can tell them apart.
+    rounds : int
+        Further rounds with fresh candidates are run, up to this many in total, while the
+        best fit is poor: ``χ²/E > good_fit`` on the final window of ``E`` measurements.
+    good_fit : float
+        ``χ²`` per measurement (measurement errors included, prior rows not counted) below
+        which the search stops.
     distinct_angle, distinct_rate : float
         Candidates closer than this (rad, rad/s) to a better one are duplicates.
     progress : callable, optional
@@ -597,26 +701,41 @@ def global_search(
     Returns
     -------
     SearchResult
+        Distinct candidates of all rounds, best first.
     """
     rng = np.random.default_rng(seed)
-    if prior is None:
-        candidates = uniform_candidates(problem, n_candidates, omega_max, rng, n_shapes)
-    else:
-        candidates = prior_candidates(problem, n_candidates, prior, rng, range(n_shapes))
-    q, w, k, shape = screen(problem, candidates, screen_duration, keep[0], prior=prior)
-    if progress:
-        progress(f"screened {len(candidates[0])} candidates")
-    chi2 = covariance = None
-    epochs = None
-    for duration, count in zip(windows, keep, strict=True):
-        if chi2 is not None:
-            best = torch.argsort(chi2)[:count]
-            q, w, shape = q[best], w[best], shape[best]
-            k = None if k is None else k[best]
-        epochs = problem.window(duration, max_epochs)
-        q, w, k, chi2, covariance = refine(problem, q, w, k, shape, epochs, iterations, prior=prior)
+    found = []
+    screened = 0
+    best_data = math.inf
+    for round_ in range(rounds):
+        part = _search_round(
+            problem,
+            n_candidates,
+            omega_max,
+            n_shapes,
+            rng,
+            prior,
+            screen_duration,
+            windows,
+            keep,
+            max_epochs,
+            iterations,
+            tolerance,
+            twin,
+            progress,
+        )
+        found.append(part[:8])
+        screened += part[7]
+        best_data = min(best_data, float(part[8].min()))
         if progress:
-            progress(f"refined {len(q)} candidates on {duration:.0f} s, best χ² {chi2.min():.1f}")
+            progress(f"round {round_ + 1}: best χ² {best_data:.1f} on {len(part[6])} measurements")
+        if best_data <= good_fit * len(part[6]):
+            break
+    q, w, k, shape, chi2, covariance, epochs, _ = (
+        torch.cat([p[i] for p in found]) if i not in (2, 6, 7) else found[-1][i] for i in range(8)
+    )
+    if k is not None:
+        k = torch.cat([p[2] for p in found])
     order = torch.argsort(chi2).numpy()
     q_np = q.detach().numpy()[order]
     w_np = w.detach().numpy()[order]
@@ -630,5 +749,64 @@ def global_search(
         chi2=chi2.detach().numpy()[kept],
         covariance=covariance.detach().numpy()[kept],
         epochs=epochs,
-        screened=len(candidates[0]),
+        screened=screened,
     )
+
+
+def _search_round(
+    problem,
+    n_candidates,
+    omega_max,
+    n_shapes,
+    rng,
+    prior,
+    screen_duration,
+    windows,
+    keep,
+    max_epochs,
+    iterations,
+    tolerance,
+    twin,
+    progress,
+):
+    """One screening and continuation pass: the refined candidates' tensors, the final
+    window, the number screened and the data part of χ²."""
+    if prior is None:
+        candidates = uniform_candidates(problem, n_candidates, omega_max, rng, n_shapes)
+    else:
+        candidates = prior_candidates(problem, n_candidates, prior, rng, range(n_shapes))
+    q, w, k, shape = screen(
+        problem, candidates, screen_duration, keep[0], prior=prior, tolerance=tolerance
+    )
+    if progress:
+        progress(f"screened {len(candidates[0])} candidates")
+    chi2 = covariance = None
+    epochs = None
+    factor = 1
+    for stage, (duration, count) in enumerate(zip(windows, keep, strict=True)):
+        if chi2 is not None:
+            best = torch.argsort(chi2)[: factor * count]
+            q, w, shape = q[best], w[best], shape[best]
+            k = None if k is None else k[best]
+        epochs = problem.window(duration, max_epochs)
+        q, w, k, chi2, covariance = refine(problem, q, w, k, shape, epochs, iterations, prior=prior)
+        if stage == 0 and twin is not None and len(keep) > 1:
+            # Twins of the candidates that go on, refined on the same window.
+            best = torch.argsort(chi2)[: keep[1]]
+            q, w, shape, chi2, covariance = (
+                q[best],
+                w[best],
+                shape[best],
+                chi2[best],
+                covariance[best],
+            )
+            k = None if k is None else k[best]
+            q, w, k, shape, chi2, covariance = _with_twins(
+                problem, twin, q, w, k, shape, chi2, covariance, epochs, iterations, prior
+            )
+            factor = 2
+        if progress:
+            progress(f"refined {len(q)} candidates on {duration:.0f} s, best χ² {chi2.min():.1f}")
+    # The stopping test looks at the data part of χ² only.
+    chi2_data = chi2 if prior is None else chi2 - (prior.residuals(q, w) ** 2).sum(dim=1)
+    return q, w, k, shape, chi2, covariance, epochs, len(candidates[0]), chi2_data

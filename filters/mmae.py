@@ -5,22 +5,32 @@ Each model ``j`` (a candidate shape with its materials and inertia) runs its own
 probabilities follow Bayes' rule with the filters' innovation likelihoods
 ``p(z_k | M_j) = N(ν_j; 0, S_j)`` (Magill 1965; Linares et al. 2013 for light curves):
 
-``p_j ← p_j N(ν_j; 0, S_j) / Σ_i p_i N(ν_i; 0, S_i)``,
+``p_j ← p_j p(z_k | M_j) / Σ_i p_i p(z_k | M_i)``,
 
 computed in logarithms, then floored, ``p_j ← max(p_j, p_floor)`` and renormalised, so
-that a model cannot be locked out by a transient (a glint its filter has not yet learnt to
-predict) and recover later.
+that a model cannot be locked out by a transient (a burst of outliers its filter is too
+confident to explain) and must climb back from 10⁻¹⁰⁰.
+
+**Hypotheses within a model.** Light curves are ambiguous: a short arc is often fitted
+equally well by distinct attitude–rate states (the mirror ambiguity of mirror-symmetric
+shapes, see :meth:`filters.symmetry.SymmetryGroup.mirror_twin`). A model's filter may
+therefore hold several members — hypotheses ``h`` with weights ``w_jh`` — run in one batched
+call (Wetterer et al. 2014's multiple-hypothesis UKF). The model's likelihood is then the
+Gaussian sum ``p(z | M_j) = Σ_h w_jh N(ν_jh; 0, S_jh)`` and the weights follow Bayes' rule
+without a floor: the data decide between hypotheses, which are not separate models. The
+model's estimate is its heaviest hypothesis.
 
 The bank reports the fused estimate — the probability-weighted quaternion average
 (Markley et al. 2007, :func:`filters.attitude.quaternion_mean`; never a linear blend of
-components), the weighted rates, and the mixture covariance
+components) of the models' estimates, the weighted rates, and the mixture covariance
 ``Σ p_j (P_j + δx_j δx_jᵀ)`` with ``δx_j`` the deviation of model ``j``'s estimate from
 the fused one — and a **consistency test** that flags when no candidate fits: over a
 sliding window of the last ``W`` measurements, a consistent filter's normalised innovations
-squared ``ν²/S`` average ``χ²(W)/W``; a model whose windowed mean exceeds the upper
-``level`` quantile of that distribution does not fit, and when none fits the bank says so
-(``none_fits``) instead of returning the least-bad model. Gated measurements count with
-their NIS (capped at ``nis_cap`` so one glint does not dominate the window).
+squared ``ν²/S`` average ``χ²(W)/W``; a model whose windowed mean (of its heaviest
+hypothesis) exceeds the upper ``level`` quantile of that distribution does not fit, and
+when none fits the bank says so (``none_fits``) instead of returning the least-bad model.
+Gated measurements count with their NIS (capped at ``nis_cap`` so one glint does not
+dominate the window).
 
 filterpy 2.0.0's ``MMAEFilterBank`` is not used: its ``predict()`` does not propagate
 UKFs (it passes ``dt = 0``), its blended covariance omits the spread of the means, its
@@ -35,6 +45,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from scipy.special import logsumexp
 
 from filters.attitude import (
     quaternion_conjugate,
@@ -49,19 +60,21 @@ __all__ = ["MultipleModelBank"]
 
 
 class MultipleModelBank:
-    """A bank of single-member :class:`~filters.ukf.AttitudeUKF`, one per model.
+    """A bank of :class:`~filters.ukf.AttitudeUKF`, one per model, each with one or more
+    hypotheses (members).
 
     Parameters
     ----------
     filters : sequence of AttitudeUKF
-        One filter (one member) per model.
+        One filter per model.
     names : sequence of str
         Model names.
-    log_prior : (M,) array, optional
-        Initial log-probabilities (uniform when omitted), e.g. ``−½ χ²`` of each model's
-        initial fit.
+    log_prior : sequence, optional
+        Initial log-weights of every hypothesis, one array per model (or one number per
+        model for single-member filters), e.g. ``−½ χ²`` of each initial fit. The model
+        prior is the log-sum of its hypotheses'. Uniform when omitted.
     floor : float
-        Probability floor ``p_floor``.
+        Model probability floor ``p_floor``.
     window : int
         Measurements in the consistency window ``W``.
     level : float
@@ -74,7 +87,7 @@ class MultipleModelBank:
         self,
         filters: Sequence[AttitudeUKF],
         names: Sequence[str],
-        log_prior: Any = None,
+        log_prior: Sequence[Any] | None = None,
         floor: float = 1e-3,
         window: int = 60,
         level: float = 0.99,
@@ -82,8 +95,6 @@ class MultipleModelBank:
     ) -> None:
         if len(filters) != len(names) or not filters:
             raise ValueError("one filter per model name, at least one")
-        if any(len(f) != 1 for f in filters):
-            raise ValueError("each model's filter must hold exactly one member")
         if not 0.0 <= floor * len(filters) < 1.0:
             raise ValueError(f"probability floor {floor} is too large for {len(filters)} models")
         self.filters = list(filters)
@@ -92,8 +103,17 @@ class MultipleModelBank:
         self.window = int(window)
         self.nis_cap = float(nis_cap)
         self.bound = chi2_band(1, self.window, 1.0 - 2.0 * (1.0 - level))[1]
-        log_p = np.zeros(len(filters)) if log_prior is None else np.asarray(log_prior, float)
-        self.probabilities = self._floored(np.exp(log_p - np.max(log_p)))
+        if log_prior is None:
+            log_prior = [np.zeros(len(f)) for f in filters]
+        self.log_weights = []
+        model_log = []
+        for f, lp in zip(filters, log_prior, strict=True):
+            lp = np.broadcast_to(np.asarray(lp, dtype=float), (len(f),))
+            total = logsumexp(lp)
+            self.log_weights.append(lp - total)
+            model_log.append(total)
+        model_log = np.asarray(model_log)
+        self.probabilities = self._floored(np.exp(model_log - np.max(model_log)))
         self._nis: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
 
     def __len__(self) -> int:
@@ -104,6 +124,10 @@ class MultipleModelBank:
         p = np.maximum(p, self.floor)
         return p / p.sum()
 
+    def leader(self, model: int) -> int:
+        """Index of the heaviest hypothesis of a model."""
+        return int(np.argmax(self.log_weights[model]))
+
     def predict(self, dt: float) -> None:
         """Propagate every model's filter over ``dt`` seconds."""
         for f in self.filters:
@@ -112,7 +136,7 @@ class MultipleModelBank:
     def update(
         self, z: float, r: float, hx: Sequence[Measurement], use: bool = True
     ) -> list[UpdateResult]:
-        """Update every filter and the model probabilities with one measurement.
+        """Update every filter, the hypothesis weights and the model probabilities.
 
         Parameters
         ----------
@@ -121,29 +145,37 @@ class MultipleModelBank:
         hx : sequence of callables
             Each model's measurement function (see :meth:`AttitudeUKF.update`).
         use : bool
-            False: only evaluate the innovations (no filter or probability update, no
-            consistency sample), e.g. for measurements already used by an initial fit.
+            False: only evaluate the innovations (no filter, weight or probability update,
+            no consistency sample), e.g. for measurements already used by an initial fit.
 
         Returns
         -------
         list of UpdateResult
-            One per model.
+            One per model (arrays over its hypotheses).
         """
+        leaders = [self.leader(j) for j in range(len(self))]
         results = [
             f.update(z, r, h) if use else f.evaluate(z, r, h)
             for f, h in zip(self.filters, hx, strict=True)
         ]
-        if use:
-            log_l = np.array([float(res.log_likelihood[0]) for res in results])
-            log_l = np.nan_to_num(log_l, nan=-np.inf)
-            if np.isfinite(log_l).any():
-                with np.errstate(divide="ignore"):
-                    log_post = np.log(self.probabilities) + log_l
-                self.probabilities = self._floored(np.exp(log_post - np.max(log_post)))
-            for window, res in zip(self._nis, results, strict=True):
-                nis = float(res.nis[0])
-                if math.isfinite(nis):
-                    window.append(min(nis, self.nis_cap))
+        if not use:
+            return results
+        model_log = np.full(len(self), -np.inf)
+        for j, res in enumerate(results):
+            log_l = np.nan_to_num(res.log_likelihood, nan=-np.inf)
+            if not np.isfinite(log_l).any():
+                continue
+            joint = self.log_weights[j] + log_l
+            model_log[j] = logsumexp(joint)
+            self.log_weights[j] = joint - model_log[j]
+        if np.isfinite(model_log).any():
+            with np.errstate(divide="ignore"):
+                log_post = np.log(self.probabilities) + model_log
+            self.probabilities = self._floored(np.exp(log_post - np.max(log_post)))
+        for window, res, lead in zip(self._nis, results, leaders, strict=True):
+            nis = float(res.nis[lead])
+            if math.isfinite(nis):
+                window.append(min(nis, self.nis_cap))
         return results
 
     @property
@@ -168,6 +200,12 @@ class MultipleModelBank:
         """Index of the most probable model."""
         return int(np.argmax(self.probabilities))
 
+    def estimate(self, model: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Attitude, rates and covariance of ``[δp, ω(, θ)]`` of a model's heaviest
+        hypothesis."""
+        f, h = self.filters[model], self.leader(model)
+        return f.q[h], f.omega[h], f.P[h]
+
     def fused(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Probability-weighted attitude, rates and mixture covariance of ``[δp, ω]``.
 
@@ -181,15 +219,15 @@ class MultipleModelBank:
             ``Σ p_j (P_j + δx_j δx_jᵀ)`` with ``δx_j = [GRP(q_j ⊗ q⁻¹), ω_j − ω]``.
         """
         p = self.probabilities
-        qs = np.stack([f.q[0] for f in self.filters])
-        ws = np.stack([f.omega[0] for f in self.filters])
+        estimates = [self.estimate(j) for j in range(len(self))]
+        qs = np.stack([e[0] for e in estimates])
+        ws = np.stack([e[1] for e in estimates])
         q = quaternion_mean(qs, p)
         omega = p @ ws
         dx = np.concatenate(
             [quaternion_to_grp(quaternion_multiply(qs, quaternion_conjugate(q))), ws - omega], 1
         )
         covariance = sum(
-            pj * (f.P[0, :6, :6] + np.outer(d, d))
-            for pj, f, d in zip(p, self.filters, dx, strict=True)
+            pj * (e[2][:6, :6] + np.outer(d, d)) for pj, e, d in zip(p, estimates, dx, strict=True)
         )
         return q, omega, covariance

@@ -24,7 +24,7 @@ directions ``A(q)ᵀ a`` of the two attitudes, minimised over the discrete part)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -54,10 +54,14 @@ class SymmetryGroup:
         Proper rotations ``R`` (``v' = R v`` in the body frame), identity first.
     axis : (3,) numpy.ndarray or None
         Unit axis of a continuous rotational symmetry (body frame), if any.
+    reflections : (H, 3, 3) numpy.ndarray
+        Improper symmetries ``M`` (det −1, mirror planes and rotoreflections) of the facet
+        set and inertia; they cause the *mirror ambiguity* (:meth:`mirror_twin`).
     """
 
     rotations: np.ndarray
     axis: np.ndarray | None = None
+    reflections: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
     @property
     def order(self) -> int:
@@ -173,12 +177,48 @@ class SymmetryGroup:
         picked = np.take_along_axis(rates, np.asarray(index)[None, ..., None], axis=0)[0]
         return np.linalg.norm(np.asarray(omega_estimate, dtype=float) - picked, axis=-1)
 
+    def mirror_twin(
+        self, q: Any, omega: Any, sun: Any, observer: Any
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The state that mirrors ``(q, ω)`` in a mirror-symmetric shape.
+
+        With an improper symmetry ``M`` of the shape and ``P = I − 2 n nᵀ`` the reflection
+        across the plane of the Sun and observer directions (``n ∝ ŝ × ô``), the attitude
+        ``A' = M A(q) P`` sees the Sun and the observer at ``M L`` and ``M V`` in the body
+        frame, so it renders the same brightness, and ``ω' = −M ω`` keeps it torque-free
+        (``M J Mᵀ = J``). The twin's light curve matches exactly while the geometry stands
+        still and drifts away as the Sun–observer plane turns: the photometric mirror
+        ambiguity, resolved only by long arcs.
+
+        Parameters
+        ----------
+        q : (..., 4) array
+        omega : (..., 3) array
+            rad/s.
+        sun, observer : (3,) array
+            Object → Sun and object → observer directions (inertial) at the epoch of
+            ``q``.
+
+        Returns
+        -------
+        (q', ω') : numpy arrays, or None when the shape has no improper symmetry.
+        """
+        if len(self.reflections) == 0:
+            return None
+        normal = np.cross(np.asarray(sun, float), np.asarray(observer, float))
+        normal /= np.linalg.norm(normal)
+        plane = np.eye(3) - 2.0 * np.outer(normal, normal)
+        mirror = self.reflections[0]
+        twin = mirror @ attitude_matrix(np.asarray(q, dtype=float)) @ plane
+        return quaternion_from_matrix(twin), -np.asarray(omega, dtype=float) @ mirror.T
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description: order, axis, quaternions."""
+        """JSON-ready description: order, axis, quaternions, number of reflections."""
         return {
             "order": self.order,
             "continuous_axis": None if self.axis is None else self.axis.tolist(),
             "quaternions": self.quaternions.tolist(),
+            "reflections": len(self.reflections),
         }
 
 
@@ -260,19 +300,39 @@ def symmetry_group(
         # Every facet vector is parallel to one line (a degenerate model): only identity.
         return SymmetryGroup(np.eye(3)[None])
     verify = _Verifier(cs, n, a / area_scale, labels, tangents, anisotropic, inertia, tolerance)
-    rotations = [np.eye(3)]
-    v1, v2 = vectors[first], vectors[second]
+    pair = (first, second)
+    rotations = _matches(np.eye(3), pair, vectors, owners, classes, verify, tolerance)
+    reflections = _matches(
+        np.diag([1.0, 1.0, -1.0]), pair, vectors, owners, classes, verify, tolerance
+    )
+    rotations = np.stack(rotations)
+    return SymmetryGroup(
+        rotations,
+        _continuous_axis(rotations, continuous_order),
+        np.stack(reflections) if reflections else np.zeros((0, 3, 3)),
+    )
+
+
+def _matches(base, pair, vectors, owners, classes, verify, tolerance) -> list[np.ndarray]:
+    """Symmetries ``R B`` (``R`` proper) of the facet set, ``B`` the identity (rotations)
+    or a reflection (improper symmetries): ``R`` maps the reflected reference pair onto
+    every matching pair and is kept when it passes ``verify``."""
+    first, second = pair
+    v1, v2 = base @ vectors[first], base @ vectors[second]
+    found = [np.eye(3)] if np.allclose(base, np.eye(3)) else []
     for j in _matching_vectors(first, vectors, owners, classes):
         for m in _matching_vectors(second, vectors, owners, classes):
             if abs(vectors[j] @ vectors[m] - v1 @ v2) > 10 * tolerance:
                 continue
             r = _triad(v1, v2, vectors[j], vectors[m])
-            if r is None or any(np.allclose(r, known, atol=1e-6) for known in rotations):
+            if r is None:
                 continue
-            if verify(r):
-                rotations.append(r)
-    rotations = np.stack(rotations)
-    return SymmetryGroup(rotations, _continuous_axis(rotations, continuous_order))
+            element = r @ base
+            if any(np.allclose(element, known, atol=1e-6) for known in found):
+                continue
+            if verify(element):
+                found.append(element)
+    return found
 
 
 def _candidate_vectors(cs: np.ndarray, n: np.ndarray, tolerance: float):

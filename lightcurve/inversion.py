@@ -95,7 +95,17 @@ class InversionOptions:
     global_candidates : int
         Uniform candidates screened (per shape) without ``q0`` and for the PF.
     refine_keep : tuple of int
-        Candidates refined on each growing window (60 s, 180 s, ``init_window_s``).
+        Candidates refined on each growing window (30 s, 90 s, ``init_window_s``); with a
+        mirror-symmetric shape the mirror twins of the candidates kept after the first
+        window are refined too.
+    hypotheses : int
+        Distinct initial fits each UKF keeps as weighted hypotheses (multiple-hypothesis
+        UKF) and the PF seeds particles around.
+    search_tolerance : float
+        Model tolerance (mag) of the screening (see :func:`filters.global_search.screen`).
+    search_rounds : int
+        Screening rounds with fresh candidates while the best initial fit is poor
+        (``χ²`` above twice the number of measurements).
     max_epochs : int
         Measurements per refinement window.
     process_noise_attitude : float
@@ -134,8 +144,6 @@ class InversionOptions:
         PF Metropolis–Hastings moves per resampling (0: roughening only).
     move_window : int
         Past measurements in the resample-move target.
-    modes_max : int
-        Distinct search candidates seeding the PF.
     mode_angle_deg, mode_rate_deg_s : float
         PF clustering radii.
     min_mode_weight : float
@@ -150,7 +158,10 @@ class InversionOptions:
     init_window_s: float = 300.0
     local_candidates: int = 1024
     global_candidates: int = 20_000
-    refine_keep: tuple[int, ...] = (128, 24, 6)
+    refine_keep: tuple[int, ...] = (256, 24, 6)
+    hypotheses: int = 6
+    search_tolerance: float = 0.0
+    search_rounds: int = 3
     max_epochs: int = 90
     process_noise_attitude: float = 1e-9
     process_noise_rate: float = 1e-13
@@ -172,7 +183,6 @@ class InversionOptions:
     bandwidth: float = 0.5
     moves: int = 0
     move_window: int = 8
-    modes_max: int = 12
     mode_angle_deg: float = 10.0
     mode_rate_deg_s: float = 0.5
     min_mode_weight: float = 0.01
@@ -351,6 +361,13 @@ class _Context:
     notes: list[str]
     start: float
     omega_max: float
+    _groups: dict[int, SymmetryGroup] = field(default_factory=dict)
+
+    def symmetry(self, s: int) -> SymmetryGroup:
+        """Symmetry group of shape ``s`` (computed once)."""
+        if s not in self._groups:
+            self._groups[s] = shape_symmetry(self.model.shapes[self.names[s]])
+        return self._groups[s]
 
     def report(self, fraction: float, message: str) -> None:
         if self.progress is not None:
@@ -380,7 +397,7 @@ class _Context:
     def windows(self) -> tuple[float, ...]:
         span = float(self.model.times[-1] - self.model.times[0])
         longest = min(self.options.init_window_s, 0.5 * span)
-        windows = [w for w in (60.0, 180.0) if w < longest] + [longest]
+        windows = [w for w in (30.0, 90.0) if w < longest] + [longest]
         return tuple(windows)
 
 
@@ -408,13 +425,38 @@ def _search(
         n_shapes=len(shapes),
         seed=ctx.rng,
         prior=prior,
-        screen_duration=min(60.0, windows[0]),
+        screen_duration=windows[0],
         windows=windows,
         keep=keep,
         max_epochs=ctx.options.max_epochs,
+        tolerance=ctx.options.search_tolerance,
+        twin=_twin_function(ctx, shapes),
+        rounds=ctx.options.search_rounds,
     )
     result.shape = np.asarray(shapes)[result.shape]
     return result
+
+
+def _twin_function(ctx: _Context, shapes: Sequence[int]) -> Callable | None:
+    """Mirror twins (at the first epoch's geometry) for the shapes that have them."""
+    groups = [ctx.symmetry(s) for s in shapes]
+    if not any(len(g.reflections) for g in groups):
+        return None
+    sun = ctx.model.observations.sun_vectors[0]
+    observer = ctx.model.observations.observer_vectors[0]
+
+    def twin(q: np.ndarray, omega: np.ndarray, shape: np.ndarray) -> tuple:
+        q_out, w_out = q.copy(), omega.copy()
+        has = np.zeros(len(q), dtype=bool)
+        for local, group in enumerate(groups):
+            rows = shape == local
+            mirrored = group.mirror_twin(q[rows], omega[rows], sun, observer)
+            if mirrored is not None and rows.any():
+                q_out[rows], w_out[rows] = mirrored
+                has |= rows
+        return q_out, w_out, has
+
+    return twin
 
 
 def _remapped(measure: Callable, shapes: Sequence[int]) -> Callable:
@@ -452,12 +494,13 @@ def _symmetry_note(name: str, group: SymmetryGroup) -> str | None:
 # ----------------------------------------------------------------------------- UKF/MMAE
 @dataclass
 class _UKFSetup:
-    """A shape's UKF with its measurement function and the end of its initial fit."""
+    """A shape's UKF (one member per hypothesis), its measurement function, the initial
+    log-weights of the hypotheses and the end of the initial fit."""
 
     ukf: AttitudeUKF
     hx: Callable[[int], Callable]
     fit_end: float
-    chi2: float
+    log_prior: np.ndarray
     offset_index: int | None
     k_index: tuple[int, int] | None
 
@@ -465,50 +508,56 @@ class _UKFSetup:
 def _ukf_for_shape(
     ctx: _Context, s: int, prior: Prior | None, prior_covariance: np.ndarray
 ) -> _UKFSetup:
-    """Initial fit (or the prior as given) and the USQUE filter of shape ``s``."""
+    """Initial fit (or the prior as given) and the USQUE filter bank of shape ``s``."""
     opt = ctx.options
-    shape = ctx.model.shapes[ctx.names[s]]
-    k0 = None
+    name = ctx.names[s]
+    shape = ctx.model.shapes[name]
     params: list[float] = []
     variances: list[float] = []
     k_index = offset_index = None
     if opt.estimate_inertia:
-        k0 = tanh_from_inertia(np.diag(shape.principal_moments))
         k_index = (0, 1)
-        params += list(k0)
+        params += list(tanh_from_inertia(np.diag(shape.principal_moments)))
         variances += [opt.inertia_sigma**2] * 2
     if opt.estimate_offset:
         offset_index = len(params)
         params.append(0.0)
         variances.append(opt.offset_sigma_mag**2)
+    n = 6 + len(params)
+    base = np.zeros((n, n))
+    for i, v in enumerate(variances):
+        base[6 + i, 6 + i] = v
     if opt.init == "none" and prior is not None:
-        q, omega = prior.q, prior.omega
-        covariance = prior_covariance
-        fit_end, chi2 = -math.inf, 0.0
+        q, omega = prior.q[None], prior.omega[None]
+        covariance = base.copy()[None]
+        covariance[0, :6, :6] = prior_covariance
+        theta = np.tile(params, (1, 1))
+        fit_end, log_prior = -math.inf, np.zeros(1)
     else:
         found = _search(
             ctx,
             prior,
             [s],
             opt.local_candidates if prior is not None else opt.global_candidates,
-            keep_last=1,
+            keep_last=opt.hypotheses,
         )
-        q, omega, chi2 = found.q[0], found.omega[0], float(found.chi2[0])
-        p = found.covariance[0]
-        covariance = _grp_covariance(p[:6, :6])
+        h = min(opt.hypotheses, len(found))
+        q, omega = found.q[:h], found.omega[:h]
+        m = found.covariance.shape[1]  # 6, or 8 with k
+        covariance = np.repeat(base[None], h, axis=0)
+        covariance[:, :m, :m] = found.covariance[:h]  # rotation vector ≈ GRP (f = 4)
+        theta = np.tile(params, (h, 1))
         if found.k is not None:
-            params[:2] = list(found.k[0])
+            theta[:, :2] = found.k[:h]
         fit_end = float(ctx.model.times[found.epochs[-1]])
-        if len(found) > 1 and found.chi2[1] - found.chi2[0] < 9.0:
+        log_prior = -0.5 * found.chi2[:h]
+        close = found.chi2[1:h] - found.chi2[0] < 9.0
+        if close.any():
             ctx.notes.append(
-                f"{ctx.names[s]}: ambiguous initial fit (second-best χ² {found.chi2[1]:.1f} vs "
-                f"{found.chi2[0]:.1f} on {len(found.epochs)} measurements)"
+                f"{name}: {int(close.sum()) + 1} distinct states fit the first {fit_end:.0f} s "
+                f"within Δχ² < 9 (χ² {', '.join(f'{c:.0f}' for c in found.chi2[:h])}); "
+                "the filter keeps them as hypotheses"
             )
-    n = 6 + len(params)
-    full = np.zeros((n, n))
-    full[:6, :6] = covariance
-    for i, v in enumerate(variances):
-        full[6 + i, 6 + i] = v
     noise = ProcessNoise(
         opt.process_noise_attitude, opt.process_noise_rate, params=(0.0,) * len(params)
     )
@@ -521,9 +570,9 @@ def _ukf_for_shape(
     ukf = AttitudeUKF(
         q,
         omega,
-        full,
+        0.5 * (covariance + np.swapaxes(covariance, 1, 2)),
         dynamics,
-        params=np.asarray(params) if params else None,
+        params=theta if params else None,
         process_noise=noise,
         alpha=opt.alpha,
         beta=opt.beta,
@@ -540,13 +589,7 @@ def _ukf_for_shape(
 
         return hx
 
-    return _UKFSetup(ukf, hx_at, fit_end, chi2, offset_index, k_index)
-
-
-def _grp_covariance(p: np.ndarray) -> np.ndarray:
-    """Covariance of ``[δθ, ω]`` re-expressed for ``[δp, ω]``: GRPs with ``f = 4`` equal
-    the rotation vector to first order, so it is used as is (symmetrised)."""
-    return 0.5 * (p + p.T)
+    return _UKFSetup(ukf, hx_at, fit_end, log_prior, offset_index, k_index)
 
 
 def _run_bank(
@@ -564,11 +607,10 @@ def _run_bank(
     for s, name in enumerate(ctx.names):
         ctx.report(0.3 * s / model.n_shapes, f"initial fit of {name}")
         setups.append(_ukf_for_shape(ctx, s, prior, prior_covariance))
-    log_prior = np.array([-0.5 * st.chi2 for st in setups])
     bank = MultipleModelBank(
         [st.ukf for st in setups],
         ctx.names,
-        log_prior=log_prior,
+        log_prior=[st.log_prior for st in setups],
         floor=opt.probability_floor if model.n_shapes > 1 else 0.0,
         window=opt.consistency_window,
         level=opt.consistency_level,
@@ -607,7 +649,7 @@ def _run_bank(
     q, omega, cov = bank.fused()
     best = bank.best
     name = ctx.names[best]
-    group = shape_symmetry(model.shapes[name])
+    group = ctx.symmetry(best)
     note = _symmetry_note(name, group)
     if note:
         ctx.notes.append(note)
@@ -623,10 +665,16 @@ def _run_bank(
         )
     parameters = {}
     st = setups[best]
+    theta = st.ukf.params[bank.leader(best)]
     if st.k_index is not None:
-        parameters["k1"], parameters["k2"] = (float(v) for v in st.ukf.params[0, :2])
+        parameters["k1"], parameters["k2"] = (float(v) for v in theta[:2])
     if st.offset_index is not None:
-        parameters["magnitude_offset"] = float(st.ukf.params[0, st.offset_index])
+        parameters["magnitude_offset"] = float(theta[st.offset_index])
+    if len(st.ukf) > 1:
+        weights = np.exp(bank.log_weights[best])
+        ctx.notes.append(
+            f"{name}: heaviest of {len(st.ukf)} hypotheses carries {weights.max():.3f}"
+        )
     return _result(
         ctx,
         method,
@@ -662,11 +710,11 @@ def _run_pf(
         prior,
         shapes,
         opt.local_candidates if prior is not None else opt.global_candidates,
-        keep_last=opt.modes_max,
+        keep_last=2 * opt.hypotheses,
     )
-    found = _best_distinct(found, opt.modes_max)
+    found = _best_distinct(found, 2 * opt.hypotheses)
     q, omega, k, shape, log_w = _seed_particles(ctx, found, prior, particles)
-    groups = [shape_symmetry(s) for s in model.shapes.values()]
+    groups = [ctx.symmetry(s) for s in range(model.n_shapes)]
     pf = AttitudeParticleFilter(
         q,
         omega,

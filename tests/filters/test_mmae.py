@@ -105,6 +105,25 @@ def test_bank_validation():
         MultipleModelBank([ukf], ["a", "b"])
     with pytest.raises(ValueError, match="floor"):
         MultipleModelBank([ukf, ukf], ["a", "b"], floor=0.6)
-    two = AttitudeUKF([[0, 0, 0, 1.0]] * 2, [0, 0, 0], np.eye(6), torque_free_dynamics(INERTIA))
-    with pytest.raises(ValueError, match="exactly one member"):
-        MultipleModelBank([two], ["a"])
+
+
+def test_hypotheses_within_a_model_are_weighted_by_their_likelihoods():
+    """One model, two hypotheses: the truth and a start 60° away. The data pick the truth
+    and the model's estimate is that hypothesis."""
+    rng = np.random.default_rng(3)
+    q0 = random_quaternion((), rng)
+    w0 = np.radians([1.0, 2.0, -1.0])
+    truth = propagate(np.concatenate([q0, w0]), np.arange(60.0), INERTIA)
+    wrong = quaternion_multiply(axis_angle_to_quaternion([0.0, 1.0, 1.0], math.radians(60)), q0)
+    p0 = np.diag([math.radians(3) ** 2] * 3 + [math.radians(0.1) ** 2] * 3)
+    ukf = AttitudeUKF(np.stack([wrong, q0]), w0, p0, torque_free_dynamics(INERTIA))
+    bank = MultipleModelBank([ukf], ["only"], log_prior=[np.array([0.0, 0.0])])
+    for k in range(len(truth)):
+        if k:
+            bank.predict(1.0)
+        z = rotate(truth[k, :4], MODELS[0][k % 2])[k % 3] + rng.normal(0, SIGMA)
+        bank.update(z, SIGMA**2, [_hx(0, k)])
+    assert bank.leader(0) == 1 and np.exp(bank.log_weights[0][1]) > 0.999
+    q, _, _ = bank.estimate(0)
+    assert math.degrees(float(attitude_angle(q, truth[-1, :4]))) < 1.0
+    assert bank.probabilities[0] == 1.0

@@ -1,0 +1,185 @@
+"""Global search: residual Jacobians, batched LM, priors, screening, trajectories."""
+
+import math
+
+import numpy as np
+import torch
+
+from filters.attitude import (
+    attitude_angle,
+    axis_angle_to_quaternion,
+    propagate,
+    quaternion_multiply,
+    random_quaternion,
+    rotate,
+    rotation_vector_to_quaternion,
+)
+from filters.global_search import (
+    BatchProblem,
+    Prior,
+    global_search,
+    refine,
+    residual_jacobian,
+    uniform_rates,
+)
+
+INERTIA = np.diag([1.0, 1.7, 2.2])
+VECTORS = torch.tensor([[0.48, -0.6, 0.64], [0.0, 0.6, 0.8]], dtype=torch.float64)
+
+
+def _measure(q, epochs, shape):
+    """A smooth, non-linear scalar attitude sensor (two inertial directions seen in the
+    body frame, so that no rotation leaves it unchanged); the shape index changes it."""
+    a = rotate(q, VECTORS[0])
+    b = rotate(q, VECTORS[1])
+    value = a[..., 0] + 0.5 * b[..., 1] * a[..., 2] + 0.3 * a[..., 1] + 0.4 * b[..., 2]
+    return value + 0.3 * shape[:, None] * b[..., 0]
+
+
+def _problem(q0, w0, seconds=120, sigma=0.01, seed=0, shape=0):
+    times = np.arange(0.0, seconds, 2.0)
+    truth = propagate(np.concatenate([q0, w0]), times, INERTIA)
+    clean = _measure(torch.as_tensor(truth[None, :, :4]), None, torch.tensor([shape]))[0]
+    noisy = clean.numpy() + np.random.default_rng(seed).normal(0, sigma, len(times))
+    return BatchProblem(times, noisy, np.full(len(times), sigma), _measure, [INERTIA, INERTIA])
+
+
+def test_jacobian_matches_finite_differences_of_the_residuals():
+    q0 = random_quaternion((), 0)
+    w0 = np.radians([2.0, -1.0, 3.0])
+    problem = _problem(q0, w0)
+    epochs = np.arange(0, 60, 3)
+    q = torch.as_tensor(random_quaternion(3, 1))
+    v = torch.as_tensor(np.random.default_rng(2).normal(0, 0.03, (3, 3)))
+    shape = torch.zeros(3, dtype=torch.long)
+    for t_start in (0.0, float(problem.times[epochs[-1]])):  # forwards and backwards
+        _r, jac = residual_jacobian(problem, q, v, shape, epochs, t_start=t_start)
+        for j, step in enumerate([1e-6] * 3 + [1e-8] * 3):
+            dq = torch.zeros(3, 3, dtype=torch.float64)
+            dv = torch.zeros(3, 3, dtype=torch.float64)
+            (dq if j < 3 else dv)[:, j % 3] = step
+            plus, minus = (
+                problem.residuals_of(
+                    problem.trajectory(
+                        quaternion_multiply(rotation_vector_to_quaternion(s * dq), q),
+                        v[:, :3] + s * dv,
+                        None,
+                        shape,
+                        epochs,
+                        t_start,
+                    ),
+                    shape,
+                    epochs,
+                )
+                for s in (1.0, -1.0)
+            )
+            numeric = (plus - minus) / (2 * step)
+            assert torch.allclose(jac[..., j], numeric, rtol=1e-4, atol=1e-6 * numeric.abs().max())
+
+
+def test_levenberg_marquardt_recovers_the_truth_and_its_covariance():
+    q0 = random_quaternion((), 3)
+    w0 = np.radians([1.5, 2.5, -1.0])
+    problem = _problem(q0, w0, seconds=200, sigma=0.002)
+    rng = np.random.default_rng(4)
+    n = 4
+    starts = quaternion_multiply(
+        axis_angle_to_quaternion(rng.standard_normal((n, 3)), np.full(n, math.radians(8))), q0
+    )
+    w_start = w0 + rng.normal(0, math.radians(0.1), (n, 3))
+    epochs = np.arange(len(problem.times))
+    q, w, k, chi2, cov = refine(
+        problem,
+        torch.as_tensor(starts),
+        torch.as_tensor(w_start),
+        None,
+        torch.zeros(n, dtype=torch.long),
+        epochs,
+        iterations=25,
+    )
+    errors = np.degrees(attitude_angle(q.numpy(), q0))
+    assert np.all(errors < 0.3), errors
+    assert np.allclose(w.numpy(), w0, atol=math.radians(0.01))
+    # χ² of a correct fit: E − 6 degrees of freedom (5σ tolerance).
+    dof = len(epochs) - 6
+    assert np.all(np.abs(chi2.numpy() - dof) < 5 * math.sqrt(2 * dof))
+    sigma = np.degrees(np.sqrt(np.trace(cov.numpy()[:, :3, :3], axis1=1, axis2=2)))
+    assert np.all(errors < 5 * sigma) and np.all(sigma < 0.3)
+    assert k is None
+
+
+def test_prior_pulls_an_uninformative_fit_to_the_prior_mean():
+    q0 = random_quaternion((), 5)
+    w0 = np.radians([1.0, 0.0, 0.5])
+    problem = _problem(q0, w0, seconds=20, sigma=10.0)  # measurements carry almost nothing
+    prior = Prior(q0, w0, math.radians(2.0), math.radians(0.05))
+    start = quaternion_multiply(rotation_vector_to_quaternion([0.1, 0.0, 0.0]), q0)
+    q, _w, _, _, cov = refine(
+        problem,
+        torch.as_tensor(start[None]),
+        torch.as_tensor(w0[None] + 0.01),
+        None,
+        torch.zeros(1, dtype=torch.long),
+        np.arange(len(problem.times)),
+        iterations=20,
+        prior=prior,
+    )
+    assert math.degrees(float(attitude_angle(q[0].numpy(), q0))) < 0.05
+    assert np.allclose(np.sqrt(np.diag(cov[0].numpy()))[:3], math.radians(2.0), rtol=0.05)
+
+
+def test_global_search_finds_the_attitude_and_the_shape_from_a_uniform_prior():
+    q0 = random_quaternion((), 6)
+    w0 = np.radians([2.0, -1.5, 1.0])
+    problem = _problem(q0, w0, seconds=120, sigma=0.01, shape=1)
+    result = global_search(
+        problem,
+        n_candidates=4000,
+        omega_max=math.radians(4.0),
+        n_shapes=2,
+        seed=7,
+        screen_duration=16.0,
+        windows=(16.0, 48.0, 120.0),  # continuation: rates settle before the arc grows
+        keep=(64, 16, 6),
+        iterations=12,
+    )
+    best = 0
+    assert result.shape[best] == 1
+    assert math.degrees(float(attitude_angle(result.q[best], q0))) < 3.0
+    assert np.allclose(result.omega[best], w0, atol=math.radians(0.05))
+    assert result.chi2[best] < len(problem.times)
+    assert np.all(np.diff(result.chi2) >= 0) and result.screened == 4000
+
+
+def test_backward_and_forward_trajectories_agree():
+    q0 = random_quaternion((), 8)
+    w0 = np.radians([3.0, 1.0, -2.0])
+    problem = _problem(q0, w0)
+    epochs = np.arange(len(problem.times))
+    shape = torch.zeros(1, dtype=torch.long)
+    forward = problem.trajectory(
+        torch.as_tensor(q0[None]), torch.as_tensor(w0[None]), None, shape, epochs
+    )
+    # Start from the last state and go back to the first epoch.
+    truth = propagate(np.concatenate([q0, w0]), problem.times, INERTIA)
+    backward = problem.trajectory(
+        torch.as_tensor(truth[-1:, :4]),
+        torch.as_tensor(truth[-1:, 4:]),
+        None,
+        shape,
+        epochs,
+        t_start=float(problem.times[-1]),
+    )
+    assert np.degrees(attitude_angle(forward[0].numpy(), truth[:, :4])).max() < 1e-4
+    assert np.degrees(attitude_angle(backward[0].numpy(), truth[:, :4])).max() < 1e-4
+
+
+def test_uniform_rates_fill_the_ball_uniformly():
+    w = uniform_rates(20000, 2.0, np.random.default_rng(9))
+    radius = np.linalg.norm(w, axis=1)
+    assert radius.max() <= 2.0
+    # P(|ω| ≤ r) = (r/R)³.
+    assert abs(np.mean(radius <= 1.0) - 0.125) < 0.01
+    prior = Prior(random_quaternion((), 1), np.zeros(3), 0.1, 0.01)
+    q, omega = prior.sample(5, np.random.default_rng(1))
+    assert np.allclose(q[0], prior.q) and np.allclose(omega[0], 0.0)
