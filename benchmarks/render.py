@@ -21,7 +21,7 @@ from benchmarks._machine import machine_info
 from filters.attitude import random_quaternion
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
-from shapes import Material, primitives
+from shapes import Material, get_library, primitives
 
 MATERIALS = {
     "lambert": {"rd": 0.5},
@@ -39,6 +39,52 @@ def workload(n_epochs: int, seed: int = 0):
     obs = rng.normal(size=(n_epochs, 3))
     obs *= 4e7 / np.linalg.norm(obs, axis=1, keepdims=True)
     return q, sun, obs
+
+
+def shadow_table_accuracy(n: int = 2000, seed: int = 20261122) -> dict:
+    """``table`` vs ``exact`` shadowing, mag, over ``n`` random attitudes and geometries."""
+    rng = np.random.default_rng(seed)
+    q = random_quaternion(n, rng)
+    sun = rng.normal(size=(n, 3))
+    sun *= 1.496e11 / np.linalg.norm(sun, axis=1, keepdims=True)
+    obs = rng.normal(size=(n, 3))
+    obs *= 4e7 / np.linalg.norm(obs, axis=1, keepdims=True)
+    out = {}
+    for name in ("box_wing", "itokawa"):
+        shape = get_library().load(name)
+        table = Renderer(shape, shadows="table").magnitude(q, sun, obs)
+        exact = Renderer(shape, shadows="exact").magnitude(q, sun, obs)
+        both = np.isfinite(table) & np.isfinite(exact)
+        diff = table[both] - exact[both]
+        out[name] = {
+            "geometries": n,
+            "lit_and_seen": int(both.sum()),
+            "dark_mismatch": int(np.sum(np.isfinite(table) != np.isfinite(exact))),
+            "rms_mag": float(np.sqrt(np.mean(diff**2))),
+            "max_abs_mag": float(np.max(np.abs(diff))),
+            "seed": seed,
+        }
+    return out
+
+
+def batch_equals_single_calls(n: int = 10_000, seed: int = 1) -> dict:
+    """A batch of ``n`` attitudes gives the same magnitudes as ``n`` single calls."""
+    rng = np.random.default_rng(seed)
+    renderer = Renderer(get_library().load("box_wing"))
+    q = random_quaternion(n, rng)
+    sun, obs = np.array([1.496e11, 0.0, 0.0]), np.array([3.0e7, 2.0e7, 1.0e6])
+    start = time.perf_counter()
+    batch = renderer.flux(q, sun, obs)
+    batch_s = time.perf_counter() - start
+    start = time.perf_counter()
+    single = np.array([renderer.flux(qi, sun, obs) for qi in q])
+    single_s = time.perf_counter() - start
+    return {
+        "attitudes": n,
+        "max_relative_difference": float(np.max(np.abs(single - batch) / np.max(batch))),
+        "batch_seconds": batch_s,
+        "single_calls_seconds": single_s,
+    }
 
 
 def best_time(func, repeats: int) -> float:
@@ -109,6 +155,8 @@ def main() -> None:
                 "unit": "facet-epochs per second",
                 "results": results,
                 "particle_filter_10k_particles_one_epoch_float32": pf,
+                "shadow_table_vs_exact": shadow_table_accuracy(),
+                "batch_vs_single_calls": batch_equals_single_calls(),
                 "machine": machine_info(),
             },
             indent=2,
