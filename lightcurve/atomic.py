@@ -8,6 +8,7 @@ through these functions.
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator
@@ -15,9 +16,16 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
-__all__ = ["atomic_path", "atomic_write_json", "atomic_write_table", "atomic_write_text"]
+__all__ = [
+    "atomic_path",
+    "atomic_write_json",
+    "atomic_write_table",
+    "atomic_write_text",
+    "json_ready",
+]
 
 
 @contextmanager
@@ -58,6 +66,26 @@ def atomic_write_text(target: str | os.PathLike[str], text: str) -> None:
     """Write UTF-8 text atomically."""
     with atomic_path(target) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def json_ready(value: Any) -> Any:
+    """Nested dicts/lists with numpy values as Python numbers and NaN/inf as None.
+
+    JSON has no NaN or infinity, and :func:`atomic_write_json` rejects them.
+    """
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
 
 
 def atomic_write_json(target: str | os.PathLike[str], data: Any) -> None:

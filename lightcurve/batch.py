@@ -32,7 +32,7 @@ from typing import Any
 import pandas as pd
 from tqdm.auto import tqdm
 
-from lightcurve.atomic import atomic_write_json, atomic_write_table
+from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
 
 __all__ = ["INPUT_SUFFIXES", "collect_inputs", "run_batch", "summary_path"]
 
@@ -137,7 +137,7 @@ def _run_one(
     record["input"] = str(input_path)
     record["runtime_s"] = time.perf_counter() - start
     try:
-        atomic_write_json(result_dir / SUMMARY, _json_ready(record))
+        atomic_write_json(result_dir / SUMMARY, json_ready(record))
     except (OSError, ValueError) as exc:
         record = {
             "input": str(input_path),
@@ -146,17 +146,6 @@ def _run_one(
             "runtime_s": record["runtime_s"],
         }
     return record
-
-
-def _json_ready(value: Any) -> Any:
-    """Replace non-finite floats by None so the summary stays strict JSON."""
-    if isinstance(value, float):
-        return value if value == value and abs(value) != float("inf") else None
-    if isinstance(value, dict):
-        return {k: _json_ready(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(v) for v in value]
-    return value
 
 
 def _init_worker(threads: int) -> None:
@@ -293,7 +282,7 @@ def _summary_table(records: list[dict[str, Any]], columns: Sequence[str]) -> pd.
     for record in records:
         row = {}
         for key, value in record.items():
-            row[key] = json.dumps(_json_ready(value)) if isinstance(value, dict | list) else value
+            row[key] = json.dumps(json_ready(value)) if isinstance(value, dict | list) else value
         rows.append(row)
     table = pd.DataFrame(rows)
     ordered = [c for c in columns if c in table] + [c for c in table if c not in columns]

@@ -26,8 +26,7 @@ import numpy as np
 import pandas as pd
 
 from lightcurve import io
-from lightcurve.atomic import atomic_write_json, atomic_write_table
-from lightcurve.commands._analysis import json_ready
+from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
 from lightcurve.commands._args import float_vector
 
 NAME = "convex"
