@@ -50,16 +50,20 @@ def resolve_shapes(
     shape: str | None = None,
     shapes: list[str] | None = None,
     all_shapes: bool = False,
-) -> list[str]:
+) -> list[str] | None:
     """Candidate shape names from the ``--shape``/``--shapes``/``--all-shapes`` options.
 
     Names are only checked for form here; whether each exists is checked per input, so an
-    unknown name becomes that input's error record rather than stopping the batch.
+    unknown name becomes that input's error record rather than stopping the batch. ``None``
+    (no option given) means every input names its own shape in its ``# shape:`` header.
     """
     from shapes import get_library
 
-    if sum(x is not None and x is not False for x in (shape, shapes, all_shapes or None)) != 1:
-        raise ValueError("give exactly one of --shape, --shapes or --all-shapes")
+    given = sum(x is not None and x is not False for x in (shape, shapes, all_shapes or None))
+    if given > 1:
+        raise ValueError("give at most one of --shape, --shapes or --all-shapes")
+    if given == 0:
+        return None
     if all_shapes:
         return list(get_library(library).names())
     names = [shape] if shape is not None else [s.strip() for s in shapes if s.strip()]
@@ -73,7 +77,7 @@ def invert_file(
     result_dir: Path,
     *,
     method: str,
-    shape_names: list[str],
+    shape_names: list[str] | None,
     library: str | None = None,
     q0: list[float] | None = None,
     omega0_rad_s: list[float] | None = None,
@@ -82,9 +86,14 @@ def invert_file(
     omega_max_rad_s: float | None = None,
     particles: int | None = None,
     seed: int = 0,
+    init: str = "search",
     drop_bad_rows: bool = False,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
+
+    A file whose header names its object's shape (``# shape: NAME``, as ``lightcurve
+    simulate`` writes) must name a shape of the library; with ``shape_names`` None that
+    shape is the file's only candidate.
 
     Returns
     -------
@@ -102,6 +111,21 @@ def invert_file(
 
     observations = io.read(input_path, drop_bad_rows=drop_bad_rows)
     lib = get_library(library)
+    declared = observations.meta.get("shape")
+    if declared is not None:
+        try:
+            lib.load(declared)
+        except ValueError as exc:
+            raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
+    if shape_names is None:
+        if declared is None:
+            raise ValueError(
+                f"{input_path}: no candidate shape: the file has no '# shape:' header and "
+                "none of --shape, --shapes, --all-shapes was given"
+            )
+        shape_names = [declared]
+    if method == "ukf" and len(shape_names) != 1:
+        raise ValueError("method 'ukf' inverts one shape: give one (or use mmae/pf)")
     candidates = {name: lib.load(name) for name in shape_names}
     options = {
         "q0": None if q0 is None else np.asarray(q0, float),
@@ -111,6 +135,7 @@ def invert_file(
         "omega_max": omega_max_rad_s,
         "particles": particles,
         "seed": seed,
+        "init": init,
     }
     result = invert(
         observations,

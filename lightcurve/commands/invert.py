@@ -6,6 +6,10 @@ attitude and rates at the last epoch with 1-sigma, PF modes, residual rms, statu
 estimates.parquet (per-epoch estimates, covariance diagonal, predicted magnitude, residual,
 model probabilities). DIR/summary.csv has one row per input, failures included.
 
+The candidate shapes come from --shape, --shapes or --all-shapes; without them each file's
+'# shape: NAME' header names its shape. A header naming a shape the library does not have
+makes that input an error.
+
 The batch is resumable: inputs whose summary says "ok" are skipped unless --overwrite; all
 outputs are written atomically and a bad input is recorded as an error without stopping
 the batch. --workers runs inputs in parallel processes; --scheduler sends the same work to
@@ -33,8 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--library", help="shape library folder (default: $LIGHTCURVE_LIBRARY or built-in)"
     )
-    which = parser.add_mutually_exclusive_group(required=True)
-    which.add_argument("--shape", help="one candidate shape")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument(
+        "--shape", help="one candidate shape (default: the shape each file's header names)"
+    )
     which.add_argument("--shapes", help="comma-separated candidate shapes")
     which.add_argument("--all-shapes", action="store_true", help="every shape of the library")
     parser.add_argument("--method", choices=("ukf", "mmae", "pf"), required=True)
@@ -61,6 +67,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         metavar="W",
         help="bound on |omega| for the PF / global search, deg/s",
+    )
+    parser.add_argument(
+        "--init",
+        choices=("search", "none"),
+        default="search",
+        help="search: find the initial state (around --q0/--omega0 when given, else "
+        "globally); none: start the filters at --q0/--omega0 as given (default search)",
     )
     parser.add_argument("--particles", type=int, metavar="N", help="particle count (pf)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -97,8 +110,10 @@ def run(args: argparse.Namespace) -> int:
         ("--workers", args.workers),
     ):
         _positive(name, value)
-    if args.method == "ukf" and len(names) != 1:
+    if args.method == "ukf" and names is not None and len(names) != 1:
         raise ValueError("--method ukf inverts one shape: use --shape (or mmae/pf for several)")
+    if args.init == "none" and (args.q0 is None or args.omega0 is None):
+        raise ValueError("--init none starts the filters at --q0 and --omega0: give both")
     deg = np.deg2rad
     options = {
         "method": args.method,
@@ -111,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         "omega_max_rad_s": None if args.omega_max is None else float(deg(args.omega_max)),
         "particles": args.particles,
         "seed": args.seed,
+        "init": args.init,
         "drop_bad_rows": args.drop_bad_rows,
     }
     template = dict.fromkeys(SUMMARY_KEYS)
