@@ -124,6 +124,14 @@ class SpinState:
         """Unit spin axis in the ecliptic frame, shape (3,)."""
         return pole_vector(self.lambda_rad, self.beta_rad)
 
+    def at_epoch(self, mjd: float) -> SpinState:
+        """The same rotation with its reference epoch moved to ``mjd``.
+
+        ``φ0' = φ(mjd) mod 2π``; the attitude at every epoch is unchanged.
+        """
+        phi = float(rotation_angle(self, np.array(mjd, float))) % (2 * math.pi)
+        return SpinState(self.lambda_rad, self.beta_rad, self.period_s, phi, float(mjd))
+
     def attitude(self, mjd: Any) -> Any:
         """Attitude quaternions (ecliptic → body) at epochs ``mjd``, shape (n, 4)."""
         return spin_attitude(

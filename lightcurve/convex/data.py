@@ -92,6 +92,15 @@ class Photometry:
         return Photometry(**values, relative=self.relative, sources=self.sources)
 
     @property
+    def mean_epoch(self) -> float:
+        """Weighted mean epoch ``Σ t_j/σ_j² / Σ 1/σ_j²`` (MJD).
+
+        The reference epoch of the fits: there the rotation phase and the period are least
+        correlated (a change of period turns the body by ``∝ (t − t̄)``, both ways).
+        """
+        return float(np.average(self.mjd, weights=self.sigma**-2.0))
+
+    @property
     def phase_angle(self) -> np.ndarray:
         """Solar phase angle (rad), shape (N,)."""
         return np.arccos(np.clip(np.sum(self.sun * self.earth, axis=1), -1.0, 1.0))

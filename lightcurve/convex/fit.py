@@ -19,7 +19,7 @@ import torch
 
 from lightcurve.convex.data import Photometry
 from lightcurve.convex.model import ConvexModel
-from lightcurve.convex.optimize import levenberg_marquardt
+from lightcurve.convex.optimize import levenberg_marquardt, scaled_inverse
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import SpinState
 
@@ -229,7 +229,9 @@ def _solve(
     return model, free, result
 
 
-def _solutions(model: ConvexModel, free: torch.Tensor, result) -> list[ConvexSolution]:
+def _solutions(
+    model: ConvexModel, free: torch.Tensor, result, epoch_mjd: float
+) -> list[ConvexSolution]:
     lay = model.layout
     with torch.no_grad():
         fitted, _ = model.evaluate(result.x, jacobian=False)
@@ -246,6 +248,7 @@ def _solutions(model: ConvexModel, free: torch.Tensor, result) -> list[ConvexSol
         lam, beta, rate, phi0 = (float(v) for v in x[lay.spin])
         sigma = _uncertainties(result.hessian[row], float(result.chi2[row]), n, p, index, lay, x)
         spin = SpinState(lam, beta, 2 * math.pi / rate, phi0 % (2 * math.pi), model.epoch_mjd)
+        spin = spin.at_epoch(epoch_mjd)
         out.append(
             ConvexSolution(
                 spin=spin,
@@ -268,7 +271,7 @@ def _solutions(model: ConvexModel, free: torch.Tensor, result) -> list[ConvexSol
 def _uncertainties(hessian, chi2, n, p, index, lay, x) -> dict[str, float]:
     """1σ of λ, β (deg), P (h) and the pole direction (deg) from ``χ²_ν (JᵀJ)⁻¹``."""
     try:
-        cov = torch.linalg.inv(hessian).cpu().numpy() * chi2 / max(n - p, 1)
+        cov = scaled_inverse(hessian).cpu().numpy() * chi2 / max(n - p, 1)
     except RuntimeError:
         return {}
     var = dict(zip(index, np.diag(cov), strict=True))
@@ -291,15 +294,24 @@ def fit(
     data: Photometry,
     starts: SpinState | Sequence[SpinState],
     settings: ConvexSettings | None = None,
+    epoch_mjd: float | None = None,
 ) -> list[ConvexSolution]:
     """Fit shape and spin from one or several starting spin states (batched).
+
+    The model's rotation angle is referred to the data's weighted mean epoch
+    (:attr:`Photometry.mean_epoch`), where the period is least correlated with the
+    rotation phase of the shape: with t0 at one end of decades of data a period change turns
+    the body at the other end by many degrees, which the shape must undo, and the
+    optimiser crawls along that narrow valley (``docs/analysis.md``).
 
     Parameters
     ----------
     data : Photometry
     starts : SpinState or sequence of SpinState
-        Starting pole(s) and period(s); t0 of the first is the reference epoch.
+        Starting pole(s) and period(s).
     settings : ConvexSettings, optional
+    epoch_mjd : float, optional
+        Epoch t0 at which the solutions report φ0 (default: that of the first start).
 
     Returns
     -------
@@ -310,8 +322,9 @@ def fit(
     starts = [starts] if isinstance(starts, SpinState) else list(starts)
     if not starts:
         raise ValueError("no starting spin state")
-    model, free, result = _solve(data, starts, settings, starts[0].epoch_mjd)
-    return sorted(_solutions(model, free, result), key=lambda s: s.chi2)
+    model, free, result = _solve(data, starts, settings, data.mean_epoch)
+    report = starts[0].epoch_mjd if epoch_mjd is None else float(epoch_mjd)
+    return sorted(_solutions(model, free, result, report), key=lambda s: s.chi2)
 
 
 def fibonacci_poles(count: int) -> list[tuple[float, float]]:
@@ -403,7 +416,8 @@ def period_scan(
     batch_size : int
         Fits (periods × poles) run together.
     epoch_mjd : float, optional
-        Reference epoch t0 (default: the first epoch).
+        Epoch t0 at which the solutions report φ0 (default: the first epoch); the fits
+        themselves refer the rotation to the data's mean epoch, as :func:`fit`.
     progress : bool
         Show a tqdm progress bar.
 
@@ -433,8 +447,10 @@ def period_scan(
 
         chunks = tqdm(chunks, desc="period scan", unit="batch")
     for start in chunks:
-        model, free, result = _solve(fitted, starts[start : start + batch_size], settings, epoch)
-        solutions += _solutions(model, free, result)
+        model, free, result = _solve(
+            fitted, starts[start : start + batch_size], settings, data.mean_epoch
+        )
+        solutions += _solutions(model, free, result, epoch)
     scale = len(data) / len(fitted)
     per_period = [
         solutions[i * len(pole_starts) : (i + 1) * len(pole_starts)] for i in range(len(periods))

@@ -9,6 +9,7 @@ import pytest
 import torch
 import trimesh
 
+from brdf import lommel_seeliger_from_cosines
 from filters.attitude import attitude_matrix
 from lightcurve import io
 from lightcurve.convex import (
@@ -27,6 +28,12 @@ from lightcurve.convex.minkowski import (
     minkowski_polyhedron,
 )
 from lightcurve.convex.model import ConvexModel
+from lightcurve.ephemeris import (
+    ITOKAWA_HG,
+    ITOKAWA_ORBIT,
+    asteroid_geometry,
+    nightly_epochs,
+)
 from lightcurve.observations import Observations
 from lightcurve.simulate import GaussianNoise
 from lightcurve.spin import SpinState, pole_distance, simulate_rotator
@@ -35,7 +42,7 @@ from shapes.mass import solid_properties
 from shapes.material import REGOLITH
 
 ARIADNE = "data/ariadne/test_lcs_rel"
-MISALIGNMENT_DEG = 15.0  # measured 6.0°
+MISALIGNMENT_DEG = 15.0
 
 
 def _curves(path, ids, every=1):
@@ -123,6 +130,26 @@ def test_jacobian_matches_forward_mode_autograd(mixed_model):
         assert ((jac[row] - reference).abs() / scale).max() < 1e-7
 
 
+def test_scattering_matches_the_brdf_kernel(mixed_model):
+    """The fused scattering law equals the brdf kernel (``ρ μ μ0``, w = 4π, f ≡ 1) and its
+    closed-form partials equal autograd's, including facets in shadow or out of view."""
+    rng = np.random.default_rng(2)
+    mu0 = torch.as_tensor(rng.uniform(-0.5, 1.0, (2, 40, 30)), dtype=torch.float64)
+    mu = torch.as_tensor(rng.uniform(-0.5, 1.0, (2, 40, 30)), dtype=torch.float64)
+    c = torch.tensor([0.1, 0.3], dtype=torch.float64)[:, None, None]
+    reference = (
+        lommel_seeliger_from_cosines(mu0, mu, 1.0, w=4 * math.pi, c=c, a=0.0, d=1.0, k=0.0)
+        * mu0
+        * mu
+    )
+    s, d_mu0, d_mu, d_c = mixed_model.scattering(mu0, mu, c, derivatives=True)
+    torch.testing.assert_close(s, reference, rtol=1e-12, atol=1e-15)
+    x0, x1, xc = (t.clone().requires_grad_(True) for t in (mu0, mu, c.expand_as(mu0)))
+    grads = torch.autograd.grad(mixed_model.scattering(x0, x1, xc)[0].sum(), (x0, x1, xc))
+    for closed, auto in zip((d_mu0, d_mu, d_c), grads, strict=True):
+        torch.testing.assert_close(closed, auto, rtol=1e-12, atol=1e-15)
+
+
 def test_model_matches_the_renderer_on_its_own_polyhedron():
     """Render the Minkowski polyhedron of a Gaussian image with the general renderer and
     simulate_rotator (DOP853 truth); the convex model at the same spin reproduces it."""
@@ -172,11 +199,26 @@ def test_ariadne_reduced_inversion_and_period_scan():
     assert abs(final[0].spin.period_h - 5.761982) < 1e-5
 
 
-def test_itokawa_synthetic_pole_period_and_orientation():
-    """Non-convex Itokawa (self-shadowing table) simulated night by night on Ariadne's real
-    geometries (every other point) with its published spin; 0.01 mag noise, seed 1; two pole
-    starts. φ0 is the truth's, so the model's long axis must lie along Itokawa's."""
-    geometry = _curves(ARIADNE, range(37), every=2)
+#: Itokawa's 2001 and 2004 apparitions (MJD windows; the elongation, brightness and phase
+#: limits pick the observable nights).
+ITOKAWA_WINDOWS = [(51930.0, 52010.0), (53010.0, 53250.0)]
+
+
+def itokawa_apparitions(every_days, hours, cadence_minutes):
+    """Geometry of Itokawa's 2001 and 2004 apparitions seen from the geocentre: solar
+    elongation ≥ 60°, V ≤ 18, phase ≤ 90°, one light curve per night."""
+    epochs = nightly_epochs(ITOKAWA_WINDOWS, every_days, hours, cadence_minutes)
+    return asteroid_geometry(
+        ITOKAWA_ORBIT, epochs, "itokawa", 60.0, *ITOKAWA_HG, max_magnitude=18.0, max_phase_deg=90
+    )
+
+
+def test_itokawa_synthetic_on_its_real_apparitions():
+    """Non-convex Itokawa (self-shadowing table) simulated night by night on its 2001 and
+    2004 apparitions (28 nights, 541 points) with its published spin; 0.01 mag noise, seed 1;
+    two pole starts, the period 3e-6 off. φ0 is the truth's, so the model's long axis must
+    lie along Itokawa's."""
+    geometry = itokawa_apparitions(every_days=5.0, hours=5.0, cadence_minutes=15.0)
     shape = get_library().load("itokawa")
     truth = SpinState.from_degrees(128.5, -89.66, 12.132, 0.0, float(geometry.mjd.min()))
     sim = simulate_rotator(geometry, shape, truth, GaussianNoise(0.01), seed=1)
@@ -186,11 +228,11 @@ def test_itokawa_synthetic_pole_period_and_orientation():
         dataclasses.replace(truth, lambda_rad=lam, beta_rad=beta, period_s=period_s)
         for lam, beta in fibonacci_poles(2)
     ]
-    settings = ConvexSettings(degree=5, order=5, nrows=5, max_iter=40, convexity_weight=0.5)
+    settings = ConvexSettings(degree=6, order=6, nrows=6, max_iter=80)
     best = fit(data, starts, settings)[0]
-    assert _pole_error(best, 128.5, -89.66) < 5.0
-    assert abs(best.spin.period_s / truth.period_s - 1) < 1e-5
-    assert best.rms < 0.011  # noise 0.01 mag = 0.0092 in relative intensity
+    assert _pole_error(best, 128.5, -89.66) < 5.0  # measured 1.1°
+    assert abs(best.spin.period_s / truth.period_s - 1) < 1e-5  # measured 8e-7
+    assert best.rms < 0.012  # noise 0.01 mag = 0.0092 in relative intensity; measured 0.0107
     vertices, faces = minkowski_polyhedron(best.normals, best.areas)
     hull = trimesh.Trimesh(shape.vertices, shape.faces).convex_hull
     # Long axes compared in the ecliptic frame at t0 (near the pole, λ turns the body frame).
@@ -200,10 +242,11 @@ def test_itokawa_synthetic_pole_period_and_orientation():
     hull_axis = np.linalg.eigh(solid_properties(hull.triangles).inertia)[1][:, 0]
     hull_axis = attitude_matrix(truth.attitude(epoch)[0]).T @ hull_axis
     assert math.degrees(math.acos(abs(model_axis @ hull_axis))) < MISALIGNMENT_DEG
-    # Elongated like the true hull (a/c = 2.4). The reduced model's axes are 15 % off; the
-    # benchmark measures them with the full model (docs/analysis.md).
+    # Volume-normalised axes: within 20 % on this reduced set (measured −18 %, +14 %, +8 %);
+    # the benchmark's full set (46 nights, 512 facets) measures the 10 % of the acceptance.
     axes = equivalent_ellipsoid((vertices, faces))
-    assert axes[0] / axes[2] > 1.6
+    hull_axes = equivalent_ellipsoid((hull.vertices, hull.faces))
+    assert np.all(np.abs(axes / hull_axes - 1) < 0.20)
 
 
 def test_settings_and_data_errors():
