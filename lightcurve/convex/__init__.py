@@ -3,7 +3,7 @@
 Modules: :mod:`~lightcurve.convex.sphere` (the fixed Gaussian sphere and harmonics),
 :mod:`~lightcurve.convex.data` (light curves as fitted), :mod:`~lightcurve.convex.model`
 (batched model and Jacobian in torch), :mod:`~lightcurve.convex.optimize` (batched
-Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits, period scans),
+Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits, period scans, χ² profiles in period),
 :mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
 """
 
@@ -14,6 +14,7 @@ from lightcurve.convex.fit import (
     PeriodScan,
     fibonacci_poles,
     fit,
+    period_profile,
     period_scan,
     period_step,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "Photometry",
     "fibonacci_poles",
     "fit",
+    "period_profile",
     "period_scan",
     "period_step",
 ]

@@ -18,6 +18,7 @@ from lightcurve.convex import (
     Photometry,
     fibonacci_poles,
     fit,
+    period_profile,
     period_scan,
     period_step,
 )
@@ -189,6 +190,16 @@ def test_ariadne_reduced_inversion_and_period_scan():
     assert abs(best.spin.period_h - 5.761982) < 1e-5
     assert best.rms < 0.02
     assert best.sigma["period_h"] < 5e-6
+    # Profile in period: refitted at the fit's own period χ² does not rise; 3σ away it does,
+    # by about 9 χ²_ν (the curvature σ agrees with (JᵀJ)⁻¹'s when the fit is at a minimum).
+    sigma = best.sigma["period_h"]
+    periods = best.spin.period_h + np.array([-3.0, 0.0, 3.0]) * sigma
+    low, centre, high = period_profile(data, best, periods, settings)
+    assert centre.chi2 <= best.chi2 * (1 + 1e-6)
+    assert centre.spin.period_h == pytest.approx(best.spin.period_h, abs=1e-12)
+    reduced = best.chi2 / (len(data) - len(best.coefficients) - 3)
+    for side in (low, high):
+        assert 3 * reduced < side.chi2 - centre.chi2 < 30 * reduced
     step = period_step(data, 5.76198)
     assert step == pytest.approx(0.5 * 5.76198**2 / (2 * data.span_days * 24))
     scan = period_scan(data, (5.76198 - 2.5 * step, 5.76198 + 2.5 * step), poles=2)
