@@ -145,19 +145,26 @@ class ConvexSolution:
         }
 
 
+#: Largest |β| of a fitted pole (rad): 0.006° short of the ecliptic poles, where λ would
+#: lose its derivative and the optimiser could not turn the pole towards another meridian.
+_MAX_LATITUDE = math.pi / 2 - 1e-4
+
+
 def _canonical_pole(layout):
-    lam_i, beta_i = layout.index("lambda"), layout.index("beta")
+    lam_i, beta_i, phi_i = layout.index("lambda"), layout.index("beta"), layout.index("phi0")
 
     def project(x: torch.Tensor) -> torch.Tensor:
         lam, beta = x[:, lam_i], x[:, beta_i]
-        # Latitude beyond ±90°: the same axis with the longitude turned by 180°.
+        # Latitude beyond ±90°: the same axis with the longitude turned by 180°. That pole
+        # frame is the old one turned by 180° about the axis, so φ0 − π keeps the attitude
+        # (and the model) continuous across the pole.
         beta = torch.atan2(torch.sin(beta), torch.cos(beta))
         over = beta.abs() > math.pi / 2
         beta = torch.where(over, torch.sign(beta) * math.pi - beta, beta)
-        lam = torch.where(over, lam + math.pi, lam)
         x = x.clone()
-        x[:, lam_i] = torch.remainder(lam, 2 * math.pi)
-        x[:, beta_i] = beta
+        x[:, lam_i] = torch.remainder(torch.where(over, lam + math.pi, lam), 2 * math.pi)
+        x[:, beta_i] = beta.clamp(-_MAX_LATITUDE, _MAX_LATITUDE)
+        x[:, phi_i] = torch.where(over, x[:, phi_i] - math.pi, x[:, phi_i])
         return x
 
     return project

@@ -22,7 +22,7 @@ from lightcurve.convex import (
     period_scan,
     period_step,
 )
-from lightcurve.convex.fit import refine
+from lightcurve.convex.fit import _canonical_pole, refine
 from lightcurve.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
@@ -149,6 +149,25 @@ def test_scattering_matches_the_brdf_kernel(mixed_model):
     grads = torch.autograd.grad(mixed_model.scattering(x0, x1, xc)[0].sum(), (x0, x1, xc))
     for closed, auto in zip((d_mu0, d_mu, d_c), grads, strict=True):
         torch.testing.assert_close(closed, auto, rtol=1e-12, atol=1e-15)
+
+
+def test_pole_projection_keeps_the_model_across_the_ecliptic_pole(mixed_model):
+    """A step past β = −90° is mapped to β' = −180° − β, λ + 180° and φ0 − 180°: the same
+    attitude, so the same light curve (without φ0 the body would flip by 180°)."""
+    model, lay = mixed_model, mixed_model.layout
+    x = torch.zeros((2, lay.size), dtype=torch.float64)
+    x[:, 1 : lay.n_coefficients] = torch.as_tensor(
+        np.random.default_rng(5).normal(0, 0.3, lay.n_coefficients - 1)
+    )
+    x[:, lay.spin] = torch.tensor([[0.7, -math.pi / 2 - 0.05, 3.0e-4, 0.4]] * 2)
+    x[:, lay.phase] = torch.tensor([0.5, 0.1, -0.5])
+    x[:, lay.lambert] = 0.1
+    x[:, lay.log_scale] = 0.3
+    projected = _canonical_pole(lay)(x)
+    assert float(projected[0, lay.index("beta")]) == pytest.approx(-math.pi / 2 + 0.05)
+    before, _ = model.evaluate(x, jacobian=False)
+    after, _ = model.evaluate(projected, jacobian=False)
+    torch.testing.assert_close(after, before, rtol=1e-9, atol=1e-12)
 
 
 def test_model_matches_the_renderer_on_its_own_polyhedron():
