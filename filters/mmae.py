@@ -30,7 +30,11 @@ squared ``ν²/S`` average ``χ²(W)/W``; a model whose windowed mean (of its he
 hypothesis) exceeds the upper ``level`` quantile of that distribution does not fit, and
 when none fits the bank says so (``none_fits``) instead of returning the least-bad model.
 Gated measurements count with their NIS (capped at ``nis_cap`` so one glint does not
-dominate the window).
+dominate the window). The NIS alone cannot see a filter that has lost track and grown a
+huge innovation variance (``S ≫ ν²`` however wrong the predictions): a second window holds
+the residuals normalised by the measurement variance only, ``ν²/R``, and a model whose
+windowed mean exceeds ``residual_factor`` times the same bound (default 4: an RMS misfit
+of twice the measurement errors) does not fit either.
 
 filterpy 2.0.0's ``MMAEFilterBank`` is not used: its ``predict()`` does not propagate
 UKFs (it passes ``dt = 0``), its blended covariance omits the spread of the means, its
@@ -80,7 +84,9 @@ class MultipleModelBank:
     level : float
         Quantile of ``χ²(W)/W`` above which a model does not fit.
     nis_cap : float
-        NIS values are capped at this in the window.
+        NIS values (and ``ν²/R``) are capped at this in the windows.
+    residual_factor : float
+        A model also fails when its windowed mean ``ν²/R`` exceeds this times the bound.
     """
 
     def __init__(
@@ -92,6 +98,7 @@ class MultipleModelBank:
         window: int = 60,
         level: float = 0.99,
         nis_cap: float = 25.0,
+        residual_factor: float = 4.0,
     ) -> None:
         if len(filters) != len(names) or not filters:
             raise ValueError("one filter per model name, at least one")
@@ -114,7 +121,9 @@ class MultipleModelBank:
             model_log.append(total)
         model_log = np.asarray(model_log)
         self.probabilities = self._floored(np.exp(model_log - np.max(model_log)))
+        self.residual_factor = float(residual_factor)
         self._nis: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
+        self._misfit: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
 
     def __len__(self) -> int:
         return len(self.filters)
@@ -172,10 +181,13 @@ class MultipleModelBank:
             with np.errstate(divide="ignore"):
                 log_post = np.log(self.probabilities) + model_log
             self.probabilities = self._floored(np.exp(log_post - np.max(log_post)))
-        for window, res, lead in zip(self._nis, results, leaders, strict=True):
+        for window, misfit, res, lead in zip(
+            self._nis, self._misfit, results, leaders, strict=True
+        ):
             nis = float(res.nis[lead])
             if math.isfinite(nis):
                 window.append(min(nis, self.nis_cap))
+                misfit.append(min(float(res.innovation[lead]) ** 2 / r, self.nis_cap))
         return results
 
     @property
@@ -184,11 +196,19 @@ class MultipleModelBank:
         return np.array([np.mean(w) if w else math.nan for w in self._nis])
 
     @property
+    def windowed_misfit(self) -> np.ndarray:
+        """Mean ``ν²/R`` of each model over its window (NaN before any sample)."""
+        return np.array([np.mean(w) if w else math.nan for w in self._misfit])
+
+    @property
     def consistent(self) -> np.ndarray:
-        """Models whose windowed mean NIS is within the bound (True until the window is
-        full)."""
+        """Models whose windowed mean NIS is within the bound and whose windowed mean
+        ``ν²/R`` is within ``residual_factor`` times it (True until the window is full)."""
         full = np.array([len(w) == self.window for w in self._nis])
-        return ~full | (self.windowed_nis <= self.bound)
+        fits = (self.windowed_nis <= self.bound) & (
+            self.windowed_misfit <= self.residual_factor * self.bound
+        )
+        return ~full | fits
 
     @property
     def none_fits(self) -> bool:
@@ -217,8 +237,15 @@ class MultipleModelBank:
             Weighted mean rates (rad/s).
         covariance : (6, 6) numpy.ndarray
             ``Σ p_j (P_j + δx_j δx_jᵀ)`` with ``δx_j = [GRP(q_j ⊗ q⁻¹), ω_j − ω]``.
+
+        Notes
+        -----
+        The floor guards against lock-out; it is not evidence. The fusion weights are the
+        probabilities above it, ``p_j − p_floor`` (renormalised), so that models held at
+        the floor do not spread the fused covariance over their (unrelated) attitudes.
         """
-        p = self.probabilities
+        p = np.clip(self.probabilities - self.floor, 0.0, None)
+        p = self.probabilities if p.sum() <= 0.0 else p / p.sum()
         estimates = [self.estimate(j) for j in range(len(self))]
         qs = np.stack([e[0] for e in estimates])
         ws = np.stack([e[1] for e in estimates])

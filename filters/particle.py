@@ -182,8 +182,10 @@ class AttitudeParticleFilter:
         Shrink factor ``b`` of the roughening kernel (0 disables roughening).
     mode_angle, mode_rate : float
         Clustering radii for the roughening covariances and :meth:`modes` (rad, rad/s).
+    max_clusters : int
+        Most clusters seeded; further particles join the nearest one.
     max_step : float
-        Largest RK4 step (s).
+        Largest RK4 step (s); 2 s keeps the RK4 error below 10⁻⁷ rad per step up to 5°/s.
     seed : int, optional
         Seed of the filter's torch generator.
     dtype : torch.dtype
@@ -209,7 +211,8 @@ class AttitudeParticleFilter:
         bandwidth: float = 0.5,
         mode_angle: float = math.radians(10.0),
         mode_rate: float = math.radians(0.5),
-        max_step: float = 1.0,
+        max_clusters: int = 32,
+        max_step: float = 2.0,
         seed: int | None = None,
         dtype: torch.dtype = torch.float64,
     ) -> None:
@@ -240,6 +243,7 @@ class AttitudeParticleFilter:
         self.bandwidth = float(bandwidth)
         self.mode_angle = float(mode_angle)
         self.mode_rate = float(mode_rate)
+        self.max_clusters = int(max_clusters)
         self.max_step = float(max_step)
         self.generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
 
@@ -379,20 +383,21 @@ class AttitudeParticleFilter:
         return max(low, 1e-6 * remaining)
 
     # ------------------------------------------------------------------ resample-move
-    def resample(self) -> None:
-        """Systematic resampling to equal weights."""
+    def _resample_move(self, move_target: MoveTarget | None, moves: int) -> list[float]:
+        kernel = None
+        if self.bandwidth > 0.0:
+            labels, centers = self._cluster(self.q, self.omega, self.shape, self.weights)
+            kernel = self._kernel_covariance(labels, centers)
         index = systematic_resample(self.weights, self.generator)
         self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
         if self.k is not None:
             self.k = self.k[index]
         self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
-
-    def _resample_move(self, move_target: MoveTarget | None, moves: int) -> list[float]:
-        self.resample()
-        if self.bandwidth <= 0.0:
+        if kernel is None:
             return []
-        labels, centers = self._cluster(self.q, self.omega, self.shape, self.weights)
-        jitter = self._jitter_covariance(labels, centers)
+        d = kernel.shape[-1]
+        root = torch.linalg.cholesky(kernel + 1e-18 * torch.eye(d, dtype=self.dtype))
+        jitter = root[labels[index]]
         if move_target is None:
             self.q, self.omega, self.k = self._jittered(jitter)
             return []
@@ -411,21 +416,30 @@ class AttitudeParticleFilter:
             rates.append(float(accept.to(self.dtype).mean()))
         return rates
 
-    def _jitter_covariance(self, labels: torch.Tensor, centers: torch.Tensor) -> torch.Tensor:
-        """Per-particle kernel covariance ``h² C_c`` of its cluster, shape (N, d, d)."""
+    def _kernel_covariance(self, labels: torch.Tensor, centers: torch.Tensor) -> torch.Tensor:
+        """Kernel covariance ``h² C_c`` of every cluster from the weighted particles before
+        resampling, shape (C, d, d); ``h`` uses the cluster's effective sample size."""
         state = self._local_state(centers[labels])
-        d = state.shape[1]
-        n_labels = int(labels.max()) + 1
-        covariances = torch.zeros((n_labels, d, d), dtype=self.dtype)
-        for c in range(n_labels):
-            members = state[labels == c]
-            m = len(members)
-            if m < 2:
-                continue
-            dev = members - members.mean(dim=0)
-            h = self.bandwidth * (4.0 / (d + 2)) ** (1.0 / (d + 4)) * m ** (-1.0 / (d + 4))
-            covariances[c] = h * h * (dev.T @ dev) / (m - 1)
-        return covariances[labels]
+        c, d = len(centers), state.shape[1]
+        w = self.weights
+        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w)
+        squares = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w * w)
+        safe = torch.where(total > 0, total, torch.ones_like(total))
+        mean = torch.zeros((c, d), dtype=self.dtype).index_add_(0, labels, w[:, None] * state)
+        dev = state - (mean / safe[:, None])[labels]
+        outer = w[:, None, None] * dev[:, :, None] * dev[:, None, :]
+        covariance = torch.zeros((c, d, d), dtype=self.dtype).index_add_(0, labels, outer)
+        m_eff = torch.where(squares > 0, total**2 / torch.where(squares > 0, squares, safe), safe)
+        h = self.bandwidth * (4.0 / (d + 2)) ** (1.0 / (d + 4)) * m_eff ** (-1.0 / (d + 4))
+        return (h * h / safe)[:, None, None] * covariance
+
+    def resample(self) -> None:
+        """Systematic resampling to equal weights (no roughening)."""
+        index = systematic_resample(self.weights, self.generator)
+        self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
+        if self.k is not None:
+            self.k = self.k[index]
+        self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
 
     def _local_state(self, q_center: torch.Tensor) -> torch.Tensor:
         """``[δθ about q_center, ω(, k)]`` of every particle, shape (N, d)."""
@@ -435,12 +449,11 @@ class AttitudeParticleFilter:
         parts = [dtheta, self.omega] + ([self.k] if self.k is not None else [])
         return torch.cat(parts, dim=1)
 
-    def _jittered(self, covariance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, Any]:
-        d = covariance.shape[-1]
-        eye = 1e-18 * torch.eye(d, dtype=self.dtype)
-        chol = torch.linalg.cholesky(covariance + eye)
+    def _jittered(self, root: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, Any]:
+        """Particles moved by ``root @ N(0, I)`` (``root`` (N, d, d) Cholesky factors)."""
+        d = root.shape[-1]
         noise = torch.randn((len(self), d, 1), generator=self.generator, dtype=self.dtype)
-        step = (chol @ noise)[..., 0]
+        step = (root @ noise)[..., 0]
         q = quaternion_normalize(
             quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), self.q)
         )
@@ -448,12 +461,13 @@ class AttitudeParticleFilter:
         k = None if self.k is None else self.k + step[:, 6:8]
         return q, omega, k
 
-    # ------------------------------------------------------------------ estimates
     def _cluster(
         self, q: torch.Tensor, omega: torch.Tensor, shape: torch.Tensor, weights: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
-        unassigned particle of its shape within ``mode_angle`` and ``mode_rate``.
+        unassigned particle of its shape within ``mode_angle`` and ``mode_rate``; after
+        ``max_clusters`` seeds the rest join their nearest seed (so the cost stays
+        ``O(max_clusters · N)``).
 
         Returns
         -------
@@ -462,24 +476,30 @@ class AttitudeParticleFilter:
             Seed attitude of each cluster.
         """
         labels = torch.full((len(q),), -1, dtype=torch.long)
-        centers = []
+        seeds: list[int] = []
+        cos_half = math.cos(0.5 * self.mode_angle)
         order = torch.argsort(weights, descending=True)
-        # Identical copies (after resampling) share a cluster: work on unique seeds.
-        while True:
+        while len(seeds) < self.max_clusters:
             free = order[labels[order] < 0]
             if len(free) == 0:
                 break
-            seed = free[0]
+            seed = int(free[0])
+            # angle(q, q_s) ≤ θ  ⇔  |q · q_s| ≥ cos(θ/2): one matrix-vector product.
             near = (
                 (labels < 0)
                 & (shape == shape[seed])
-                & (attitude_angle(q, q[seed][None]) <= self.mode_angle)
+                & (torch.abs(q @ q[seed]) >= cos_half)
                 & (torch.linalg.vector_norm(omega - omega[seed], dim=1) <= self.mode_rate)
             )
             near[seed] = True
-            labels[near] = len(centers)
-            centers.append(q[seed])
-        return labels, torch.stack(centers)
+            labels[near] = len(seeds)
+            seeds.append(seed)
+        rest = labels < 0
+        if rest.any():
+            closeness = torch.abs(q[rest] @ q[seeds].T)
+            closeness = torch.where(shape[rest][:, None] == shape[seeds][None], closeness, -1.0)
+            labels[rest] = torch.argmax(closeness, dim=1)
+        return labels, q[seeds]
 
     def modes(
         self,

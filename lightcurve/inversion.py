@@ -95,9 +95,12 @@ class InversionOptions:
     global_candidates : int
         Uniform candidates screened (per shape) without ``q0`` and for the PF.
     refine_keep : tuple of int
-        Candidates refined on each growing window (30 s, 90 s, ``init_window_s``); with a
-        mirror-symmetric shape the mirror twins of the candidates kept after the first
-        window are refined too.
+        Candidates (per shape) refined on each growing window (30 s, doubling up to
+        ``init_window_s``): the first count on the first window, the last on the last and
+        the ones between on the windows between (the last of them repeated). Short
+        windows are fitted equally well by many states, so many candidates go on until
+        the 120 s window ranks them; with a mirror-symmetric shape the mirror twins of
+        the candidates kept at the first hard cut are refined too.
     hypotheses : int
         Distinct initial fits each UKF keeps as weighted hypotheses (multiple-hypothesis
         UKF) and the PF seeds particles around.
@@ -158,13 +161,13 @@ class InversionOptions:
     init_window_s: float = 300.0
     local_candidates: int = 1024
     global_candidates: int = 20_000
-    refine_keep: tuple[int, ...] = (256, 24, 6)
+    refine_keep: tuple[int, ...] = (128, 128, 128, 24, 6)
     hypotheses: int = 6
     search_tolerance: float = 0.0
     search_rounds: int = 3
     max_epochs: int = 90
-    process_noise_attitude: float = 1e-9
-    process_noise_rate: float = 1e-13
+    process_noise_attitude: float = 1e-12
+    process_noise_rate: float = 1e-16
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
@@ -397,16 +400,25 @@ class _Context:
     def windows(self) -> tuple[float, ...]:
         span = float(self.model.times[-1] - self.model.times[0])
         longest = min(self.options.init_window_s, 0.5 * span)
-        windows = [w for w in (30.0, 90.0) if w < longest] + [longest]
-        return tuple(windows)
+        windows = [30.0] if longest > 30.0 else []
+        while windows and 2.0 * windows[-1] < longest:
+            windows.append(2.0 * windows[-1])  # grow at most twofold: LM stays in its basin
+        return (*windows, longest)
 
 
 def _search(
-    ctx: _Context, prior: Prior | None, shapes: Sequence[int], candidates: int, keep_last: int
+    ctx: _Context,
+    prior: Prior | None,
+    shapes: Sequence[int],
+    candidates: int,
+    keep_last: int,
+    per_shape: bool = False,
 ) -> SearchResult:
     """Initial-state search on the first window (prior-centred or uniform)."""
     windows = ctx.windows()
-    keep = list(ctx.options.refine_keep)[-len(windows) :]
+    counts = ctx.options.refine_keep
+    # First window: counts[0]; last: counts[-1]; windows between: the counts between.
+    keep = [counts[min(i, len(counts) - 2)] for i in range(len(windows) - 1)] + [counts[-1]]
     keep[-1] = max(keep[-1], keep_last)
     keep = [max(k, keep[-1]) for k in keep]
     problem = ctx.problem()
@@ -432,6 +444,8 @@ def _search(
         tolerance=ctx.options.search_tolerance,
         twin=_twin_function(ctx, shapes),
         rounds=ctx.options.search_rounds,
+        per_shape=per_shape,
+        progress=lambda message: ctx.report(0.0, message),
     )
     result.shape = np.asarray(shapes)[result.shape]
     return result
@@ -506,12 +520,19 @@ class _UKFSetup:
 
 
 def _ukf_for_shape(
-    ctx: _Context, s: int, prior: Prior | None, prior_covariance: np.ndarray
+    ctx: _Context,
+    s: int,
+    prior: Prior | None,
+    prior_covariance: np.ndarray,
+    found: SearchResult | None,
 ) -> _UKFSetup:
-    """Initial fit (or the prior as given) and the USQUE filter bank of shape ``s``."""
+    """The USQUE filter of shape ``s``: one member per distinct initial fit of the shape
+    in ``found``, or one member at the prior (``found`` None)."""
     opt = ctx.options
     name = ctx.names[s]
     shape = ctx.model.shapes[name]
+    attitude_cap = math.sqrt(prior_covariance[0, 0]) if prior is not None else math.radians(5.0)
+    omega_cap = math.sqrt(prior_covariance[3, 3]) if prior is not None else math.radians(0.05)
     params: list[float] = []
     variances: list[float] = []
     k_index = offset_index = None
@@ -527,25 +548,25 @@ def _ukf_for_shape(
     base = np.zeros((n, n))
     for i, v in enumerate(variances):
         base[6 + i, 6 + i] = v
-    if opt.init == "none" and prior is not None:
+    if found is None:
         q, omega = prior.q[None], prior.omega[None]
         covariance = base.copy()[None]
         covariance[0, :6, :6] = prior_covariance
         theta = np.tile(params, (1, 1))
         fit_end, log_prior = -math.inf, np.zeros(1)
     else:
-        found = _search(
-            ctx,
-            prior,
-            [s],
-            opt.local_candidates if prior is not None else opt.global_candidates,
-            keep_last=opt.hypotheses,
-        )
+        found = _subset(found, found.shape == s)
         h = min(opt.hypotheses, len(found))
         q, omega = found.q[:h], found.omega[:h]
         m = found.covariance.shape[1]  # 6, or 8 with k
         covariance = np.repeat(base[None], h, axis=0)
-        covariance[:, :m, :m] = found.covariance[:h]  # rotation vector ≈ GRP (f = 4)
+        # Rotation vector ≈ GRP (f = 4). Directions the fit does not determine (the
+        # rotation about a symmetry axis, a shape that fits nowhere) have huge
+        # Gauss–Newton variances: capped at the prior's, or at 30° and ω_max/2.
+        cap = np.array(
+            [attitude_cap] * 3 + [omega_cap] * 3 + [opt.inertia_sigma] * (m - 6), dtype=float
+        )
+        covariance[:, :m, :m] = _capped(found.covariance[:h], cap)
         theta = np.tile(params, (h, 1))
         if found.k is not None:
             theta[:, :2] = found.k[:h]
@@ -603,10 +624,17 @@ def _run_bank(
     prior_covariance = np.diag(
         [attitude_sigma**2] * 3 + list(np.broadcast_to(np.asarray(omega_sigma) ** 2, (3,)))
     )
-    setups = []
-    for s, name in enumerate(ctx.names):
-        ctx.report(0.3 * s / model.n_shapes, f"initial fit of {name}")
-        setups.append(_ukf_for_shape(ctx, s, prior, prior_covariance))
+    found = None
+    if opt.init == "search" or prior is None:
+        ctx.report(0.0, "initial fit")
+        n = opt.local_candidates if prior is not None else opt.global_candidates * model.n_shapes
+        found = _search(
+            ctx, prior, range(model.n_shapes), n, keep_last=opt.hypotheses, per_shape=True
+        )
+        missing = [ctx.names[s] for s in range(model.n_shapes) if not (found.shape == s).any()]
+        if missing:
+            raise RuntimeError(f"the initial search kept no candidate of {', '.join(missing)}")
+    setups = [_ukf_for_shape(ctx, s, prior, prior_covariance, found) for s in range(model.n_shapes)]
     bank = MultipleModelBank(
         [st.ukf for st in setups],
         ctx.names,
@@ -658,10 +686,12 @@ def _run_bank(
     if opt.init == "search" or prior is None:
         ctx.notes.append(f"initial state fitted on the first {setups[best].fit_end:.0f} s of data")
     if bank.none_fits:
+        pairs = zip(ctx.names, bank.windowed_nis, bank.windowed_misfit, strict=True)
         ctx.notes.append(
-            "no candidate shape fits: windowed mean NIS "
-            + ", ".join(f"{m}={v:.2f}" for m, v in zip(ctx.names, bank.windowed_nis, strict=True))
-            + f" all above {bank.bound:.2f}"
+            "no candidate shape fits over the last "
+            f"{bank.window} measurements (windowed mean NIS ν²/S above {bank.bound:.2f} or "
+            f"mean ν²/R above {bank.residual_factor * bank.bound:.2f}): "
+            + ", ".join(f"{m} {v:.2f}/{u:.2f}" for m, v, u in pairs)
         )
     parameters = {}
     st = setups[best]
@@ -712,7 +742,7 @@ def _run_pf(
         opt.local_candidates if prior is not None else opt.global_candidates,
         keep_last=2 * opt.hypotheses,
     )
-    found = _best_distinct(found, 2 * opt.hypotheses)
+    found = _subset(found, slice(0, 2 * opt.hypotheses))
     q, omega, k, shape, log_w = _seed_particles(ctx, found, prior, particles)
     groups = [ctx.symmetry(s) for s in range(model.n_shapes)]
     pf = AttitudeParticleFilter(
@@ -843,8 +873,19 @@ class _NISWindow:
         return len(self.values) == self.size and self.mean > self.bound
 
 
-def _best_distinct(found: SearchResult, count: int) -> SearchResult:
-    keep = slice(0, min(count, len(found)))
+def _capped(covariance: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Covariances ``(B, n, n)`` whose 1σ along any direction is at most ``sigma`` in the
+    units of each component: eigenvalues of ``S⁻¹ P S⁻¹`` (``S = diag σ``) clipped to
+    ``[0, 1]``."""
+    scale = np.outer(sigma, sigma)
+    scaled = covariance / scale
+    values, vectors = np.linalg.eigh(0.5 * (scaled + np.swapaxes(scaled, -1, -2)))
+    clipped = (vectors * np.clip(values, 0.0, 1.0)[..., None, :]) @ np.swapaxes(vectors, -1, -2)
+    return clipped * scale
+
+
+def _subset(found: SearchResult, keep: Any) -> SearchResult:
+    """The candidates of ``found`` selected by an index, slice or mask."""
     return dataclasses.replace(
         found,
         q=found.q[keep],
