@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epoch", type=float, metavar="MJD", help="t0 (default: first epoch)")
     parser.add_argument("--degree", type=int, default=6, help="harmonics degree = order (6)")
     parser.add_argument("--rows", type=int, default=8, help="Gaussian-sphere rows (8: 512)")
-    parser.add_argument("--iterations", type=int, default=50, help="LM iterations (50)")
+    parser.add_argument("--iterations", type=int, default=100, help="LM iterations at most (100)")
     parser.add_argument("--convexity", type=float, default=0.1, help="regularisation (0.1)")
     parser.add_argument(
         "--phase",
