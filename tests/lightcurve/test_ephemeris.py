@@ -40,7 +40,7 @@ def test_earth_mean_elements_reproduce_astropy_earth():
 @given(
     a=st.floats(0.5, 5.0),
     e=st.floats(0.0, 0.9),
-    i=st.floats(0.5, 179.5),
+    i=st.floats(0.0, 179.5),
     node=st.floats(0.0, 359.0),
     peri=st.floats(0.0, 359.0),
     mean=st.floats(0.0, 359.0),
@@ -61,7 +61,7 @@ def test_state_to_elements_round_trip(a, e, i, node, peri, mean, dt):
     later = np.array([J2000_MJD + dt + 123.4])
     scale = a * AU_KM
     assert np.linalg.norm(again.position(later) - orbit.position(later)) < 1e-8 * scale
-    h = 1e-3  # day
+    h = 1e-4  # day
     numeric = (orbit.position(t + h) - orbit.position(t - h)) / (2 * h * 86400.0)
     assert np.linalg.norm(numeric[0] - v) < 1e-6 * np.linalg.norm(v)
     assert again.semi_major_axis_au == pytest.approx(a, rel=1e-10)
