@@ -1,4 +1,4 @@
-"""README's two set-up commands stay true: CI runs exactly the README's test command."""
+"""README's two set-up commands stay true: CI runs exactly the README's two commands."""
 
 import re
 from pathlib import Path
@@ -20,7 +20,9 @@ def test_ci_runs_the_readme_test_command():
     assert "pytest" in command
 
 
-def test_main_job_installs_and_runs_lightcurve():
+def test_ci_runs_the_readme_main_job():
     command = readme_command("main-job")
     assert "pip install torch==2.13.0" in command
-    assert "lightcurve " in command
+    assert "lightcurve invert data/observations" in command
+    ci_lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines()]
+    assert command in ci_lines
