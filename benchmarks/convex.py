@@ -49,7 +49,7 @@ from benchmarks._machine import machine_info
 from filters.attitude import attitude_matrix
 from lightcurve import io
 from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
-from lightcurve.convex.fit import period_profile, refine
+from lightcurve.convex.fit import SCAN_SETTINGS, period_profile, refine
 from lightcurve.convex.minkowski import equivalent_ellipsoid, minkowski_polyhedron
 from lightcurve.ephemeris import ITOKAWA_HG, ITOKAWA_ORBIT, asteroid_geometry, nightly_epochs
 from lightcurve.simulate import GaussianNoise
@@ -83,9 +83,11 @@ def _timed(func, *args, **kwargs):
     return out, time.perf_counter() - start
 
 
-def ariadne_fit(data: Photometry, iterations: int, rtol: float) -> tuple[dict, object]:
+def ariadne_fit(
+    data: Photometry, iterations: int, rtol: float, compile: bool = False
+) -> tuple[dict, object]:
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
-    settings = ConvexSettings(max_iter=iterations, rtol=rtol)
+    settings = ConvexSettings(max_iter=iterations, rtol=rtol, compile=compile)
     solutions, seconds = _timed(fit, data, start, settings)
     best = solutions[0]
     summary = best.summary()
@@ -105,15 +107,19 @@ def ariadne_fit(data: Photometry, iterations: int, rtol: float) -> tuple[dict, o
     }, best
 
 
-def ariadne_scan(data: Photometry, poles: int, coefficient: float, refined: int) -> dict:
-    scan, _ = _timed(period_scan, data, (5.70, 5.82), poles, step_coefficient=coefficient)
+def ariadne_scan(
+    data: Photometry, poles: int, coefficient: float, refined: int, compile: bool = False
+) -> dict:
+    light = dataclasses.replace(SCAN_SETTINGS, compile=compile)
+    scan, _ = _timed(period_scan, data, (5.70, 5.82), poles, light, step_coefficient=coefficient)
     minima = scan.local_minima(refined)
-    final, seconds_refine = _timed(refine, minima, data, ConvexSettings())
+    final, seconds_refine = _timed(refine, minima, data, ConvexSettings(compile=compile))
     best = final[0]
     return {
         "range_h": [5.70, 5.82],
         "periods": len(scan.periods_h),
         "pole_starts": poles,
+        "compiled": compile,
         "step_coefficient": coefficient,
         "fits": len(scan.periods_h) * poles,
         "seconds": scan.seconds,
@@ -245,6 +251,11 @@ def main() -> None:
     parser.add_argument(
         "--profile-free", default="", help="phase parameters fitted in the profile, e.g. a,d,k"
     )
+    parser.add_argument(
+        "--compile",
+        action="store_true",
+        help="torch.compile the facet x epoch kernel (Ariadne fits and scan)",
+    )
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 = one core)")
     args = parser.parse_args()
     parts = set(args.parts.split(","))
@@ -252,8 +263,8 @@ def main() -> None:
     data = Photometry.from_observations([io.read(ARIADNE)])
     out: dict = {"machine": machine_info(), "load_average": os.getloadavg()}
     if "ariadne" in parts:
-        out["ariadne_fit"], best = ariadne_fit(data, 100, 1e-7)
-        out["ariadne_50_iterations"], _ = ariadne_fit(data, 50, 1e-7)
+        out["ariadne_fit"], best = ariadne_fit(data, 100, 1e-7, args.compile)
+        out["ariadne_50_iterations"], _ = ariadne_fit(data, 50, 1e-7, args.compile)
         (vertices, faces), seconds = _timed(minkowski_polyhedron, best.normals, best.areas)
         out["minkowski"] = {
             "facets_in": len(best.areas),
@@ -267,7 +278,7 @@ def main() -> None:
     if "itokawa" in parts:
         out["itokawa"] = itokawa(6)
     if "scan" in parts:
-        out["ariadne_scan"] = ariadne_scan(data, args.poles, args.coefficient, 10)
+        out["ariadne_scan"] = ariadne_scan(data, args.poles, args.coefficient, 10, args.compile)
     out["load_average_end"] = os.getloadavg()
     print(json.dumps(out, indent=2, default=float))
 

@@ -64,6 +64,8 @@ class ConvexSettings:
         Convergence threshold on the relative χ² decrease.
     dtype : torch.dtype
         Precision of the facet × epoch arrays.
+    compile : bool
+        Compile the facet × epoch kernel (:class:`~lightcurve.convex.model.ConvexModel`).
     """
 
     degree: int = 6
@@ -76,6 +78,7 @@ class ConvexSettings:
     max_iter: int = 100
     rtol: float = 1e-7
     dtype: torch.dtype = torch.float64
+    compile: bool = False
 
     @property
     def sphere(self) -> GaussianSphere:
@@ -212,7 +215,14 @@ def _solve(
     settings: ConvexSettings,
     epoch_mjd: float,
 ):
-    model = ConvexModel(data, settings.sphere, epoch_mjd, settings.convexity_weight, settings.dtype)
+    model = ConvexModel(
+        data,
+        settings.sphere,
+        epoch_mjd,
+        settings.convexity_weight,
+        settings.dtype,
+        compile=settings.compile,
+    )
     x0 = _start_vectors(model, settings, starts)
     free = _free_mask(model, settings)
     lambert_free = "c" in settings.free
@@ -518,7 +528,12 @@ def period_profile(
     """
     settings = settings or ConvexSettings()
     model = ConvexModel(
-        data, settings.sphere, data.mean_epoch, settings.convexity_weight, settings.dtype
+        data,
+        settings.sphere,
+        data.mean_epoch,
+        settings.convexity_weight,
+        settings.dtype,
+        compile=settings.compile,
     )
     lay = model.layout
     if len(solution.parameters) != lay.size:
