@@ -18,6 +18,7 @@ scan, OUT/scan.csv.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -50,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--degree", type=int, default=6, help="harmonics degree = order (6)")
     parser.add_argument("--rows", type=int, default=8, help="Gaussian-sphere rows (8: 512)")
     parser.add_argument("--iterations", type=int, default=100, help="LM iterations at most (100)")
+    parser.add_argument(
+        "--compile",
+        action="store_true",
+        help="torch.compile the facet x epoch kernel: 2x faster iterations after ~30 s",
+    )
     parser.add_argument("--convexity", type=float, default=0.1, help="regularisation (0.1)")
     parser.add_argument(
         "--phase",
@@ -93,12 +99,13 @@ def _settings(args: argparse.Namespace):
         lambert=args.lambert,
         free=("lambda", "beta", "rate", *extra),
         max_iter=args.iterations,
+        compile=args.compile,
     )
 
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
-    from lightcurve.convex.fit import refine
+    from lightcurve.convex.fit import SCAN_SETTINGS, refine
     from lightcurve.spin import SpinState
 
     if args.period is None and args.period_range is None:
@@ -117,7 +124,12 @@ def run(args: argparse.Namespace) -> int:
     scan = None
     if args.period_range is not None:
         scan = period_scan(
-            data, tuple(args.period_range), poles, epoch_mjd=epoch, progress=sys.stderr.isatty()
+            data,
+            tuple(args.period_range),
+            poles,
+            dataclasses.replace(SCAN_SETTINGS, compile=args.compile),
+            epoch_mjd=epoch,
+            progress=sys.stderr.isatty(),
         )
         solutions = refine(scan.local_minima(args.refine), data, settings)
         atomic_write_table(
