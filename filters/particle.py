@@ -395,8 +395,10 @@ class AttitudeParticleFilter:
         self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
         if kernel is None:
             return []
-        d = kernel.shape[-1]
-        root = torch.linalg.cholesky(kernel + 1e-18 * torch.eye(d, dtype=self.dtype))
+        # Symmetric square roots: a cluster of identical particles has a singular kernel,
+        # where a Cholesky factorisation can fail on rounding.
+        values, vectors = torch.linalg.eigh(0.5 * (kernel + kernel.transpose(-1, -2)))
+        root = vectors * torch.sqrt(values.clamp_min(0.0))[..., None, :]
         jitter = root[labels[index]]
         if move_target is None:
             self.q, self.omega, self.k = self._jittered(jitter)
