@@ -711,7 +711,9 @@ def global_search(
     seed : int or numpy.random.Generator, optional
     prior : Prior, optional
         Draw the candidates from this Gaussian prior (for every shape) instead of
-        uniformly, and refine maximum a posteriori.
+        uniformly, and refine maximum a posteriori. Without it the refinement still
+        carries a weak rate prior ``N(0, omega_max²)`` (no attitude term), which bounds
+        the rates along unobserved directions (the spin about a symmetry axis).
     screen_duration : float
         Window of the screening (s). Short enough that a candidate's rate error does not
         turn into a large attitude error within it.
