@@ -3,7 +3,7 @@ particle-filter speed study (acceptance 5). Prints JSON.
 
     python -m benchmarks.inversion ukf  [--runs 50] [--seed 0]        # acceptance 1
     python -m benchmarks.inversion mmae [--runs 30] [--seed 0]        # acceptance 2, in bank
-    python -m benchmarks.inversion mmae-outside [--runs 30] [--seed 0]  # acceptance 2, outside
+    python -m benchmarks.inversion mmae-outside [--runs 30] [--seed 0] [--extra itokawa,bennu]
     python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # acceptance 3
     python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # acceptance 3, box modes
     python -m benchmarks.inversion speed                               # acceptance 5
@@ -113,6 +113,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--shape", default=None, help="truth shape (ukf, pf)")
     parser.add_argument("--particles", type=int, default=2000, help="PF particles")
     parser.add_argument("--duration", type=float, default=1200.0, help="arc length (s)")
+    parser.add_argument(
+        "--extra",
+        default="itokawa,bennu",
+        help="mmae-outside: shapes added to the five other satellites (comma-separated)",
+    )
     parser.add_argument("--out", help="also write the JSON here")
     parser.add_argument("-v", "--verbose", action="store_true", help="print every run")
     args = parser.parse_args(argv)
@@ -133,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         records = []
         for i in range(runs):
             truth = BANK[i % len(BANK)]
-            bank = [b for b in BANK if b != truth] + ["itokawa", "bennu"]
+            bank = [b for b in BANK if b != truth] + args.extra.split(",")
             one = mmae_study(1, args.seed * 1000 + i, bank, [truth], scenario, progress=progress)
             records.extend(one["records"])
         result = {
@@ -141,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             "runs": runs,
             "seed": args.seed,
             "scenario": scenario.__dict__,
+            "extra_shapes": args.extra.split(","),
             "none_fits_rate": float(np.mean([r["none_fits"] for r in records])),
             "records": records,
         }
