@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 
@@ -28,7 +27,7 @@ import torch
 from benchmarks._machine import machine_info
 from filters.attitude import quaternion_multiply, rotation_vector_to_quaternion
 from filters.particle import AttitudeParticleFilter
-from lightcurve.atomic import atomic_write_json
+from lightcurve.atomic import atomic_write_json, json_ready
 from lightcurve.inversion_study import (
     Scenario,
     draw_truth,
@@ -166,26 +165,11 @@ def main(argv: list[str] | None = None) -> int:
     result["runtime_s"] = time.perf_counter() - start
     result["machine"] = machine_info()
     result["command"] = "python -m benchmarks.inversion " + " ".join(argv or sys.argv[1:])
-    result = _jsonable(result)
+    result = json_ready(result)
     print(json.dumps(result, indent=1))
     if args.out:
         atomic_write_json(args.out, result)
     return 0
-
-
-def _jsonable(value: object) -> object:
-    """Plain JSON values: arrays as lists, numpy scalars as Python numbers, NaN as null."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 if __name__ == "__main__":
