@@ -42,12 +42,12 @@ import torch
 from filters.attitude import (
     attitude_angle,
     inertia_from_tanh,
+    propagate_torque_free,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
 )
-from filters.ukf import propagate_torque_free
 
 __all__ = [
     "BatchProblem",

@@ -46,6 +46,7 @@ import torch
 from filters.attitude import (
     attitude_angle,
     inertia_from_tanh,
+    propagate_torque_free,
     quaternion_canonical,
     quaternion_conjugate,
     quaternion_mean,
@@ -54,7 +55,6 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
 )
-from filters.ukf import propagate_torque_free
 
 __all__ = [
     "AttitudeParticleFilter",

@@ -10,6 +10,7 @@ from filters.attitude import (
     axis_angle_to_quaternion,
     inertia_from_tanh,
     propagate,
+    propagate_torque_free,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_grp,
@@ -24,7 +25,6 @@ from filters.kalman import chi2_band, mahalanobis_squared
 from filters.ukf import (
     AttitudeUKF,
     ProcessNoise,
-    propagate_torque_free,
     sigma_points,
     torque_free_dynamics,
     unscented_moments,
