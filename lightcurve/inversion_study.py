@@ -147,8 +147,17 @@ def final_errors(
     return {
         "attitude_error_deg": math.degrees(float(group.attitude_error(q, truth[:4]))),
         "rate_error_deg_s": math.degrees(float(np.linalg.norm(omega_true - omega))),
-        "nees": float(mahalanobis_squared(error, result.covariance)),
+        "nees": _nees(error, result.covariance),
     }
+
+
+def _nees(error: np.ndarray, covariance: np.ndarray) -> float:
+    """``eᵀ P⁻¹ e``; infinite when ``P`` is singular (a collapsed particle cloud claims
+    certainty it does not have)."""
+    try:
+        return float(mahalanobis_squared(error, covariance))
+    except np.linalg.LinAlgError:
+        return math.inf
 
 
 def _runs(

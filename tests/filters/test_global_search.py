@@ -3,13 +3,17 @@
 import math
 
 import numpy as np
+import pytest
 import torch
 
 from filters.attitude import (
     attitude_angle,
+    attitude_matrix,
     axis_angle_to_quaternion,
     propagate,
+    quaternion_conjugate,
     quaternion_multiply,
+    quaternion_to_rotation_vector,
     random_quaternion,
     rotate,
     rotation_vector_to_quaternion,
@@ -17,11 +21,15 @@ from filters.attitude import (
 from filters.global_search import (
     BatchProblem,
     Prior,
+    _best_distinct,
+    _distinct,
+    _replenish,
     global_search,
     refine,
     residual_jacobian,
     uniform_rates,
 )
+from filters.symmetry import SymmetryGroup
 
 INERTIA = np.diag([1.0, 1.7, 2.2])
 VECTORS = torch.tensor([[0.48, -0.6, 0.64], [0.0, 0.6, 0.8]], dtype=torch.float64)
@@ -184,3 +192,79 @@ def test_uniform_rates_fill_the_ball_uniformly():
     prior = Prior(random_quaternion((), 1), np.zeros(3), 0.1, 0.01)
     q, omega = prior.sample(5, np.random.default_rng(1))
     assert np.allclose(q[0], prior.q) and np.allclose(omega[0], 0.0)
+
+
+def _box_group() -> SymmetryGroup:
+    """The four proper rotations of a box with three different sides (identity and the
+    half-turns about its axes)."""
+    return SymmetryGroup(
+        np.stack([np.diag(d) for d in ([1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1])]).astype(
+            float
+        )
+    )
+
+
+def test_distinct_merges_symmetry_equivalent_states_and_near_duplicates():
+    rng = np.random.default_rng(4)
+    group = _box_group()
+    q = random_quaternion(3, rng)
+    w = np.radians(rng.normal(0.0, 2.0, (3, 3)))
+    # candidate 3: a symmetry-equivalent of candidate 0 (same physical state);
+    # candidate 4: candidate 1 turned by 1° (a near duplicate); candidate 5: the same
+    # attitude as 2 but spinning differently (distinct).
+    q_eq, w_eq = group.equivalent_attitudes(q[0])[2], group.equivalent_rates(w[0])[2]
+    q_near = quaternion_multiply(axis_angle_to_quaternion([0, 0, 1], math.radians(1.0)), q[1])
+    qs = np.vstack([q, q_eq, q_near, q[2]])
+    w_near = attitude_matrix(q_near) @ attitude_matrix(q[1]).T @ w[1]  # same inertial rates
+    ws = np.vstack([w, w_eq, w_near, w[2] + np.radians([0.5, 0, 0])])
+    shape = np.zeros(6, dtype=int)
+    angle, rate = math.radians(3.0), math.radians(0.05)
+    assert list(_distinct(qs, ws, shape, angle, rate, [group])) == [0, 1, 2, 5]
+    # without the group the equivalent attitude (a half-turn away) counts as distinct
+    assert list(_distinct(qs, ws, shape, angle, rate)) == [0, 1, 2, 3, 5]
+    # another shape index never duplicates
+    assert list(_distinct(qs, ws, np.array([0, 0, 0, 1, 0, 0]), angle, rate, [group] * 2)) == [
+        0,
+        1,
+        2,
+        3,
+        5,
+    ]
+    cost = torch.tensor([5.0, 1.0, 3.0, 0.5, 0.9, 4.0], dtype=torch.float64)
+    best = _best_distinct(
+        torch.as_tensor(qs),
+        torch.as_tensor(ws),
+        torch.zeros(6, dtype=torch.long),
+        cost,
+        3,
+        False,
+        angle,
+        rate,
+        [group],
+    )
+    assert best.tolist() == [3, 4, 2]  # 0 and 1 are worse copies of 3 and 4
+
+
+def test_replenish_fills_up_with_capped_draws_around_the_survivors():
+    rng = np.random.default_rng(5)
+    q = torch.as_tensor(random_quaternion(2, rng))
+    v = torch.as_tensor(np.radians([[1.0, 0.0, 0.5], [-2.0, 1.0, 0.0]]))
+    shape = torch.tensor([0, 1])
+    wide = np.diag([1.0] * 3 + [1e-2] * 3)  # 57° and 5.7°/s: far above the caps
+    tight = np.diag([1e-6] * 3 + [1e-10] * 3)
+    covariance = torch.as_tensor(np.stack([wide, tight]))
+    cap = np.array([math.radians(10.0)] * 3 + [math.radians(0.1)] * 3)
+    q2, v2, s2 = _replenish(q, v, shape, covariance, 400, True, cap, rng, scale=1.0)
+    assert len(q2) == 800 and s2.bincount().tolist() == [400, 400]
+    assert torch.equal(q2[:2], q) and torch.equal(v2[:2], v)
+    for s, sigma_att, sigma_rate in ((0, cap[0], cap[3]), (1, 1e-3, 1e-5)):
+        rows = torch.nonzero(s2 == s).flatten()[1:]
+        dtheta = quaternion_to_rotation_vector(
+            quaternion_multiply(q2[rows].numpy(), quaternion_conjugate(q[s].numpy()))
+        )
+        dw = (v2[rows] - v[s]).numpy()
+        assert np.std(dtheta, axis=0) == pytest.approx(np.full(3, sigma_att), rel=0.15)
+        assert np.std(dw, axis=0) == pytest.approx(np.full(3, sigma_rate), rel=0.15)
+    # nothing to add when the set is full
+    q3, _, _ = _replenish(q, v, shape, covariance, 1, True, cap, rng)
+    assert len(q3) == 2
