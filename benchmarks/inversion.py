@@ -109,6 +109,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("study", choices=["ukf", "mmae", "mmae-outside", "pf", "pf-box", "speed"])
     parser.add_argument("--runs", type=int, help="Monte Carlo runs (default per study)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--first-run",
+        type=int,
+        default=0,
+        help="index of the first run (a study split in parts gives the same records)",
+    )
     parser.add_argument("--shape", default=None, help="truth shape (ukf, pf)")
     parser.add_argument("--particles", type=int, default=2000, help="PF particles")
     parser.add_argument("--duration", type=float, default=1200.0, help="arc length (s)")
@@ -126,16 +132,28 @@ def main(argv: list[str] | None = None) -> int:
     scenario = Scenario(duration_s=args.duration)
     if args.study == "ukf":
         result = ukf_study(
-            args.runs or 50, args.seed, args.shape or "box_wing", scenario, progress=progress
+            args.runs or 50,
+            args.seed,
+            args.shape or "box_wing",
+            scenario,
+            progress=progress,
+            first=args.first_run,
         )
     elif args.study == "mmae":
-        result = mmae_study(args.runs or 30, args.seed, BANK, scenario=scenario, progress=progress)
+        result = mmae_study(
+            args.runs or 30,
+            args.seed,
+            BANK,
+            scenario=scenario,
+            progress=progress,
+            first=args.first_run,
+        )
     elif args.study == "mmae-outside":
         # Each bank member in turn is the truth, the bank being the other five plus the
         # library's asteroids (≥ 6 candidates, the truth never among them).
         runs = args.runs or 30
         records = []
-        for i in range(runs):
+        for i in range(args.first_run, args.first_run + runs):
             truth = BANK[i % len(BANK)]
             bank = [b for b in BANK if b != truth] + args.extra.split(",")
             one = mmae_study(1, args.seed * 1000 + i, bank, [truth], scenario, progress=progress)
@@ -143,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
         result = {
             "study": "mmae-outside",
             "runs": runs,
+            "first_run": args.first_run,
             "seed": args.seed,
             "scenario": scenario.__dict__,
             "extra_shapes": args.extra.split(","),
@@ -159,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
             pf_scenario,
             particles=args.particles,
             progress=progress,
+            first=args.first_run,
         )
     else:
         result = speed([1_000, 3_000, 10_000, 30_000, 100_000], 20, args.seed)

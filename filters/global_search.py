@@ -49,6 +49,7 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
 )
+from filters.linalg import covariance_root
 from filters.symmetry import SymmetryGroup
 
 __all__ = [
@@ -770,8 +771,7 @@ def _replenish(
     sigma = torch.sqrt(torch.diagonal(c, dim1=1, dim2=2).clamp_min(0.0))
     shrink = torch.clamp(torch.as_tensor(cap, dtype=c.dtype) / sigma.clamp_min(1e-300), max=1.0)
     c = c * shrink[:, :, None] * shrink[:, None, :]
-    eigenvalues, vectors = torch.linalg.eigh(c)
-    root = vectors * torch.sqrt(eigenvalues.clamp_min(0.0))[:, None, :]
+    root = covariance_root(c)
     z = torch.as_tensor(rng.standard_normal((len(parents), c.shape[1])), dtype=c.dtype)
     delta = scale * (root @ z[..., None])[..., 0]
     q_new = quaternion_multiply(rotation_vector_to_quaternion(delta[:, :3]), q[parents])

@@ -55,6 +55,7 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
 )
+from filters.linalg import covariance_root
 
 __all__ = [
     "AttitudeParticleFilter",
@@ -397,9 +398,7 @@ class AttitudeParticleFilter:
             return []
         # Symmetric square roots: a cluster of identical particles has a singular kernel,
         # where a Cholesky factorisation can fail on rounding.
-        values, vectors = torch.linalg.eigh(0.5 * (kernel + kernel.transpose(-1, -2)))
-        root = vectors * torch.sqrt(values.clamp_min(0.0))[..., None, :]
-        jitter = root[labels[index]]
+        jitter = covariance_root(kernel)[labels[index]]
         if move_target is None:
             self.q, self.omega, self.k = self._jittered(jitter)
             return []
@@ -423,17 +422,19 @@ class AttitudeParticleFilter:
         resampling, shape (C, d, d); ``h`` uses the cluster's effective sample size."""
         state = self._local_state(centers[labels])
         c, d = len(centers), state.shape[1]
-        w = self.weights
-        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w)
+        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, self.weights)
+        # Weights normalised within each cluster: a light cluster (total 1e-200, say) keeps
+        # O(1) weights, so neither its mean nor its effective size underflows to 0/0.
+        w = self.weights / torch.where(total > 0, total, torch.ones_like(total))[labels]
         squares = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w * w)
-        safe = torch.where(total > 0, total, torch.ones_like(total))
         mean = torch.zeros((c, d), dtype=self.dtype).index_add_(0, labels, w[:, None] * state)
-        dev = state - (mean / safe[:, None])[labels]
+        dev = state - mean[labels]
         outer = w[:, None, None] * dev[:, :, None] * dev[:, None, :]
         covariance = torch.zeros((c, d, d), dtype=self.dtype).index_add_(0, labels, outer)
-        m_eff = torch.where(squares > 0, total**2 / torch.where(squares > 0, squares, safe), safe)
+        m_eff = 1.0 / torch.where(squares > 0, squares, torch.ones_like(squares))
         h = self.bandwidth * (4.0 / (d + 2)) ** (1.0 / (d + 4)) * m_eff ** (-1.0 / (d + 4))
-        return (h * h / safe)[:, None, None] * covariance
+        # A cluster whose particles carry no weight at all gets no jitter.
+        return torch.nan_to_num((h * h)[:, None, None] * covariance, nan=0.0, posinf=0.0)
 
     def resample(self) -> None:
         """Systematic resampling to equal weights (no roughening)."""

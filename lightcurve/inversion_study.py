@@ -165,16 +165,19 @@ def _runs(
     seed: int,
     one_run: Callable[[int, np.random.Generator], dict[str, Any]],
     progress: Callable[[str], None] | None,
+    first: int = 0,
 ) -> list[dict[str, Any]]:
+    """Runs ``first … first + runs − 1``; run ``i`` draws from ``default_rng([seed, i])``,
+    so a study split into parts gives the same records as one long study."""
     out = []
-    for i in range(runs):
+    for i in range(first, first + runs):
         start = time.perf_counter()
         record = one_run(i, np.random.default_rng([seed, i]))
         record["run"] = i
         record["runtime_s"] = time.perf_counter() - start
         out.append(record)
         if progress:
-            progress(f"run {i + 1}/{runs}: {record}")
+            progress(f"run {i + 1}/{first + runs}: {record}")
     return out
 
 
@@ -188,6 +191,7 @@ def ukf_study(
     attitude_limit_deg: float = 3.0,
     rate_limit_deg_s: float = 0.02,
     progress: Callable[[str], None] | None = None,
+    first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
     """Acceptance 1: the UKF on a known shape from a perturbed prior.
@@ -222,7 +226,7 @@ def ukf_study(
         record["residual_rms_mag"] = result.residual_rms_mag
         return record
 
-    records = _runs(runs, seed, one, progress)
+    records = _runs(runs, seed, one, progress, first)
     attitude = np.array([r["attitude_error_deg"] for r in records])
     rate = np.array([r["rate_error_deg_s"] for r in records])
     ok = (attitude < attitude_limit_deg) & (rate < rate_limit_deg_s)
@@ -233,6 +237,7 @@ def ukf_study(
         "shape": shape_name,
         "scenario": scenario.__dict__,
         "runs": runs,
+        "first_run": first,
         "seed": seed,
         "attitude_error_deg": attitude_error_deg,
         "rate_error_deg_s": rate_error_deg_s,
@@ -258,6 +263,7 @@ def mmae_study(
     rate_error_deg_s: float = 0.2,
     probability_limit: float = 0.9,
     progress: Callable[[str], None] | None = None,
+    first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
     """Acceptance 2: MMAE over a bank of library shapes.
@@ -299,7 +305,7 @@ def mmae_study(
             record.update(final_errors(result, observations, shape_symmetry(shapes[name])))
         return record
 
-    records = _runs(runs, seed, one, progress)
+    records = _runs(runs, seed, one, progress, first)
     inside = [r for r in records if r["truth"] in shapes]
     outside = [r for r in records if r["truth"] not in shapes]
     return {
@@ -308,6 +314,7 @@ def mmae_study(
         "truths": truths,
         "scenario": scenario.__dict__,
         "runs": runs,
+        "first_run": first,
         "seed": seed,
         "options": options,
         "true_shape_rate": (
@@ -334,6 +341,7 @@ def pf_study(
     omega_max_deg_s: float = 5.0,
     attitude_limit_deg: float = 5.0,
     progress: Callable[[str], None] | None = None,
+    first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
     """Acceptance 3: the PF from a uniform attitude prior and ``|ω| ≤ omega_max``.
@@ -370,13 +378,14 @@ def pf_study(
         record["truth_in_modes"] = bool(mode_errors) and min(mode_errors) < attitude_limit_deg
         return record
 
-    records = _runs(runs, seed, one, progress)
+    records = _runs(runs, seed, one, progress, first)
     return {
         "study": "pf",
         "shape": shape_name,
         "symmetry_order": group.order,
         "scenario": scenario.__dict__,
         "runs": runs,
+        "first_run": first,
         "seed": seed,
         "particles": particles,
         "omega_max_deg_s": omega_max_deg_s,
