@@ -112,8 +112,8 @@ class InversionOptions:
         Candidates (per shape) refined on each growing window (30 s, doubling up to
         ``init_window_s`` or ``pf_window_s``); default ``(128, 128, 128, 24, 6)`` for the
         UKF/MMAE and ``(128, 128, 128, 128, 24, 6)`` for the PF, whose longer windows need
-        many candidates up to 240 s. The first count on the first window, the last on the last and
-        the ones between on the windows between (the last of them repeated). Short
+        many candidates up to 240 s. The first count on the first window, the last on the
+        last and the ones between on the windows between (the last of them repeated). Short
         windows are fitted equally well by many states, so many candidates go on until
         the 120 s window ranks them; with a mirror-symmetric shape the mirror twins of
         the candidates kept at the first hard cut are refined too.
