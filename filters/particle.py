@@ -15,6 +15,14 @@ in log-weights:
   there (found by bisection) is applied; the particles are resampled and moved, their
   likelihood re-evaluated, and the rest of the likelihood follows in further stages.
 * **Resampling**: systematic (Kitagawa 1996), whenever ESS falls below the threshold.
+* **Mixture tracking** (Vermaak, Doucet & Pérez 2003): optionally every particle belongs
+  to a mixture *component* (e.g. the initial-search candidate it was seeded around). The
+  filtering density is then ``Σ_c π_c p_c(x)``; the global weights still carry
+  ``π_c · w_{i|c}``, so ``π_c`` follows the component's predictive likelihood, but ESS,
+  tempering and resampling work *within* each component. A component whose weight falls
+  to 10⁻⁸ keeps its particles and can win back weight later — plain SIR resampling
+  would have drained it for good, which loses the true mode whenever a photometric twin
+  fits the early measurements slightly better.
 * **Roughening / regularisation** (Musso, Oudjane & Le Gland 2001): after resampling,
   each particle is jittered by ``N(0, h² C_c)`` with ``C_c`` the weighted covariance of
   its mode ``c`` in ``[δθ (rotation vector about the mode's mean attitude), ω, k]`` and the
@@ -63,6 +71,9 @@ __all__ = [
     "ParticleUpdate",
     "systematic_resample",
 ]
+
+#: Components lighter than this fraction of the heaviest are not tempered.
+TEMPERED_MASS = 1e-3
 
 #: ``measure(q (N, 4), shape (N,) long) → (N,)`` predicted measurements (torch).
 ParticleMeasure = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
@@ -173,6 +184,9 @@ class AttitudeParticleFilter:
         Shape index of each particle (all 0 when omitted).
     principal_axes : sequence of (3, 3) arrays, optional
         Principal axes (columns) of each shape for the tanh inertia form.
+    components : (N,) int array, optional
+        Mixture component of each particle (mixture tracking); omitted: one component.
+        The particles are reordered so that each component is contiguous.
     likelihood : {"gaussian", "student"}
         Measurement likelihood.
     nu : float
@@ -193,7 +207,7 @@ class AttitudeParticleFilter:
 
     Attributes
     ----------
-    q, omega, k, shape, log_weights : tensors
+    q, omega, k, shape, component, log_weights : tensors
         The particles.
     """
 
@@ -206,6 +220,7 @@ class AttitudeParticleFilter:
         k: Any = None,
         shape: Any = None,
         principal_axes: Sequence[Any] | None = None,
+        components: Any = None,
         likelihood: str = "gaussian",
         nu: float = 4.0,
         ess_threshold: float = 0.5,
@@ -234,6 +249,12 @@ class AttitudeParticleFilter:
             if log_weights is None
             else torch.as_tensor(np.asarray(log_weights), dtype=dtype)
         )
+        labels = np.zeros(n, dtype=np.int64) if components is None else np.asarray(components)
+        if labels.shape != (n,):
+            raise ValueError(f"components must have shape ({n},), got {labels.shape}")
+        _, dense = np.unique(labels, return_inverse=True)
+        self.component = torch.as_tensor(dense.reshape(n), dtype=torch.long)
+        self._group_components()
         self._normalise()
         self.inertias = torch.as_tensor(np.stack([np.asarray(j) for j in inertias]), dtype=dtype)
         axes = principal_axes or [np.eye(3)] * len(inertias)
@@ -267,6 +288,49 @@ class AttitudeParticleFilter:
         total = torch.logsumexp(self.log_weights, dim=0)
         self.log_weights = self.log_weights - total
         return float(total)
+
+    @property
+    def n_components(self) -> int:
+        """Number of mixture components."""
+        return int(self.component[-1]) + 1
+
+    def component_weights(self) -> np.ndarray:
+        """Weight ``π_c`` of each mixture component, shape (C,)."""
+        return self._component_sums(self.weights).numpy()
+
+    def _component_sums(self, values: torch.Tensor) -> torch.Tensor:
+        return torch.zeros(self.n_components, dtype=values.dtype).index_add_(
+            0, self.component, values
+        )
+
+    def _within_log_weights(self, log_weights: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Log-weights normalised within each component, and each component's log-mass."""
+        peak = torch.full((self.n_components,), -math.inf, dtype=log_weights.dtype)
+        peak = peak.scatter_reduce(0, self.component, log_weights, reduce="amax")
+        peak = torch.where(torch.isfinite(peak), peak, torch.zeros_like(peak))
+        mass = self._component_sums(torch.exp(log_weights - peak[self.component]))
+        log_mass = torch.log(mass) + peak
+        return log_weights - log_mass[self.component], log_mass
+
+    def _ess_fractions(self, log_weights: torch.Tensor) -> torch.Tensor:
+        """Effective sample size of each component over its particle count, shape (C,)."""
+        within, _ = self._within_log_weights(log_weights)
+        squares = self._component_sums(torch.exp(2.0 * within))
+        counts = self._component_sums(torch.ones_like(within))
+        return torch.nan_to_num(1.0 / (squares * counts), nan=0.0)
+
+    def _group_components(self) -> None:
+        """Reorder the particles so that every component is a contiguous block."""
+        order = torch.argsort(self.component, stable=True)
+        self._take(order)
+        self.component = self.component[order]
+
+    def _take(self, index: torch.Tensor) -> None:
+        """Keep the particles ``index`` (log-weights included, component labels not)."""
+        self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
+        self.log_weights = self.log_weights[index]
+        if self.k is not None:
+            self.k = self.k[index]
 
     def shape_probabilities(self, n_shapes: int) -> np.ndarray:
         """Posterior probability of each shape index, shape (n_shapes,)."""
@@ -341,16 +405,16 @@ class AttitudeParticleFilter:
         loglik = self.log_likelihood(predicted, z, r)
         remaining, stages, resampled, evidence = 1.0, 0, 0, 0.0
         acceptance: list[float] = []
-        target = self.ess_threshold * len(self)
         while remaining > 0.0:
             stages += 1
             beta = remaining if stages >= max_stages else self._tempering_step(loglik, remaining)
             self.log_weights = self.log_weights + beta * loglik
             evidence += self._normalise()
             remaining = remaining - beta if beta < remaining else 0.0
-            if self.ess < target:
+            depleted = self._depleted(self.log_weights)
+            if bool(depleted.any()):
                 resampled += 1
-                acceptance.extend(self._resample_move(move_target, moves))
+                acceptance.extend(self._resample_move(depleted, move_target, moves))
                 if remaining > 0.0:
                     loglik = self.log_likelihood(measure(self.q, self.shape), z, r)
         return ParticleUpdate(
@@ -363,42 +427,54 @@ class AttitudeParticleFilter:
             float(np.mean(acceptance)) if acceptance else math.nan,
         )
 
+    def _depleted(self, log_weights: torch.Tensor, lightest: float = 0.0) -> torch.Tensor:
+        """Components (C,) bool whose effective size is below the threshold, among those
+        weighing at least ``lightest`` times the heaviest; components without any weight
+        left are never resampled."""
+        _, log_mass = self._within_log_weights(log_weights)
+        low = self._ess_fractions(log_weights) < self.ess_threshold
+        floor = torch.max(log_mass) + (math.log(lightest) if lightest > 0.0 else -math.inf)
+        return low & torch.isfinite(log_mass) & (log_mass >= floor)
+
     def _tempering_step(self, loglik: torch.Tensor, remaining: float) -> float:
-        """Largest ``β ≤ remaining`` keeping ESS ≥ the threshold (bisection)."""
-        target = self.ess_threshold * len(self)
+        """Largest ``β ≤ remaining`` keeping the ESS of every component weighing at least
+        ``TEMPERED_MASS`` times the heaviest at the threshold or above (bisection). Lighter
+        components take the whole likelihood and are resampled after it: tempering them
+        too would cost a render of every particle per stage for mass that hardly counts."""
 
-        def ess(beta: float) -> float:
-            lw = self.log_weights + beta * loglik
-            w = torch.exp(lw - torch.logsumexp(lw, dim=0))
-            return float(1.0 / torch.sum(w**2))
+        def enough(beta: float) -> bool:
+            depleted = self._depleted(self.log_weights + beta * loglik, TEMPERED_MASS)
+            return not bool(depleted.any())
 
-        if ess(remaining) >= target:
+        if enough(remaining):
             return remaining
         low, high = 0.0, remaining
         for _ in range(30):
             mid = 0.5 * (low + high)
-            if ess(mid) >= target:
+            if enough(mid):
                 low = mid
             else:
                 high = mid
         return max(low, 1e-6 * remaining)
 
     # ------------------------------------------------------------------ resample-move
-    def _resample_move(self, move_target: MoveTarget | None, moves: int) -> list[float]:
+    def _resample_move(
+        self, depleted: torch.Tensor, move_target: MoveTarget | None, moves: int
+    ) -> list[float]:
+        """Resample the ``depleted`` components (C,) bool within themselves, then roughen
+        (or move) their particles."""
+        within_weights, log_mass = self._within_weights()
         kernel = None
         if self.bandwidth > 0.0:
-            labels, centers = self._cluster(self.q, self.omega, self.shape, self.weights)
-            kernel = self._kernel_covariance(labels, centers)
-        index = systematic_resample(self.weights, self.generator)
-        self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
-        if self.k is not None:
-            self.k = self.k[index]
-        self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
+            labels, centers = self._cluster(self.q, self.omega, self._kernel_key(), within_weights)
+            kernel = self._kernel_covariance(labels, centers, within_weights)
+        index, selected = self._resample_within(within_weights, log_mass, depleted)
         if kernel is None:
             return []
         # Symmetric square roots: a cluster of identical particles has a singular kernel,
-        # where a Cholesky factorisation can fail on rounding.
-        jitter = covariance_root(kernel)[labels[index]]
+        # where a Cholesky factorisation can fail on rounding. Particles of components not
+        # resampled keep their place (a zero jitter).
+        jitter = covariance_root(kernel)[labels[index]] * selected[:, None, None]
         if move_target is None:
             self.q, self.omega, self.k = self._jittered(jitter)
             return []
@@ -408,24 +484,67 @@ class AttitudeParticleFilter:
             q, omega, k = self._jittered(jitter)
             proposed = move_target(q, omega, k, self.shape)
             log_u = torch.log(torch.rand(len(self), generator=self.generator, dtype=self.dtype))
-            accept = log_u < proposed - current
+            accept = (log_u < proposed - current) & selected
             self.q = torch.where(accept[:, None], q, self.q)
             self.omega = torch.where(accept[:, None], omega, self.omega)
             if k is not None:
                 self.k = torch.where(accept[:, None], k, self.k)
             current = torch.where(accept, proposed, current)
-            rates.append(float(accept.to(self.dtype).mean()))
+            rates.append(float(accept[selected].to(self.dtype).mean()))
         return rates
 
-    def _kernel_covariance(self, labels: torch.Tensor, centers: torch.Tensor) -> torch.Tensor:
+    def _within_weights(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Weights normalised within each component (0 in a component without weight) and
+        the log-mass of every component."""
+        within, log_mass = self._within_log_weights(self.log_weights)
+        return torch.nan_to_num(torch.exp(within), nan=0.0), log_mass
+
+    def _resample_within(
+        self, within_weights: torch.Tensor, log_mass: torch.Tensor, depleted: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Systematic resampling inside every depleted component (one offset each); the
+        resampled particles share their component's mass equally.
+
+        Returns
+        -------
+        index : (N,) long tensor
+            Source particle of every slot (itself outside the depleted components).
+        selected : (N,) bool tensor
+            Slots that were resampled.
+        """
+        counts = self._component_sums(torch.ones_like(within_weights))
+        starts = torch.cumsum(counts, dim=0) - counts
+        cumulative = torch.cumsum(within_weights, dim=0)
+        before = torch.cat([cumulative.new_zeros(1), cumulative])[starts.long()]
+        offsets = torch.rand(len(counts), generator=self.generator, dtype=within_weights.dtype)
+        c = self.component
+        slot = torch.arange(len(self), dtype=within_weights.dtype)
+        positions = before[c] + (offsets[c] + slot - starts[c]) / counts[c]
+        drawn = torch.searchsorted(cumulative, positions)
+        first, last = starts[c].long(), (starts[c] + counts[c] - 1).long()
+        drawn = torch.minimum(torch.maximum(drawn, first), last)
+        selected = depleted[c]
+        index = torch.where(selected, drawn, torch.arange(len(self)))
+        self._take(index)
+        equal = (log_mass - torch.log(counts))[c]
+        self.log_weights = torch.where(selected, equal, self.log_weights)
+        return index, selected
+
+    def _kernel_key(self) -> torch.Tensor:
+        """Cluster key of the roughening kernel: clusters never mix components or shapes."""
+        return self.component * (int(self.shape.max()) + 1) + self.shape
+
+    def _kernel_covariance(
+        self, labels: torch.Tensor, centers: torch.Tensor, weights: torch.Tensor
+    ) -> torch.Tensor:
         """Kernel covariance ``h² C_c`` of every cluster from the weighted particles before
         resampling, shape (C, d, d); ``h`` uses the cluster's effective sample size."""
         state = self._local_state(centers[labels])
         c, d = len(centers), state.shape[1]
-        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, self.weights)
+        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, weights)
         # Weights normalised within each cluster: a light cluster (total 1e-200, say) keeps
         # O(1) weights, so neither its mean nor its effective size underflows to 0/0.
-        w = self.weights / torch.where(total > 0, total, torch.ones_like(total))[labels]
+        w = weights / torch.where(total > 0, total, torch.ones_like(total))[labels]
         squares = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w * w)
         mean = torch.zeros((c, d), dtype=self.dtype).index_add_(0, labels, w[:, None] * state)
         dev = state - mean[labels]
@@ -437,12 +556,9 @@ class AttitudeParticleFilter:
         return torch.nan_to_num((h * h)[:, None, None] * covariance, nan=0.0, posinf=0.0)
 
     def resample(self) -> None:
-        """Systematic resampling to equal weights (no roughening)."""
-        index = systematic_resample(self.weights, self.generator)
-        self.q, self.omega, self.shape = self.q[index], self.omega[index], self.shape[index]
-        if self.k is not None:
-            self.k = self.k[index]
-        self.log_weights = torch.full_like(self.log_weights, -math.log(len(self)))
+        """Systematic resampling to equal weights within every component (no roughening)."""
+        within_weights, log_mass = self._within_weights()
+        self._resample_within(within_weights, log_mass, torch.isfinite(log_mass))
 
     def _local_state(self, q_center: torch.Tensor) -> torch.Tensor:
         """``[δθ about q_center, ω(, k)]`` of every particle, shape (N, d)."""
@@ -465,12 +581,13 @@ class AttitudeParticleFilter:
         return q, omega, k
 
     def _cluster(
-        self, q: torch.Tensor, omega: torch.Tensor, shape: torch.Tensor, weights: torch.Tensor
+        self, q: torch.Tensor, omega: torch.Tensor, key: torch.Tensor, weights: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
-        unassigned particle of its shape within ``mode_angle`` and ``mode_rate``; after
-        ``max_clusters`` seeds the rest join their nearest seed (so the cost stays
-        ``O(max_clusters · N)``).
+        unassigned particle of its key (shape, or shape and component) within
+        ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every key still
+        without one gets one, and the rest join their nearest seed of the same key (so the
+        cost stays ``O(max_clusters · N)``).
 
         Returns
         -------
@@ -490,17 +607,22 @@ class AttitudeParticleFilter:
             # angle(q, q_s) ≤ θ  ⇔  |q · q_s| ≥ cos(θ/2): one matrix-vector product.
             near = (
                 (labels < 0)
-                & (shape == shape[seed])
+                & (key == key[seed])
                 & (torch.abs(q @ q[seed]) >= cos_half)
                 & (torch.linalg.vector_norm(omega - omega[seed], dim=1) <= self.mode_rate)
             )
             near[seed] = True
             labels[near] = len(seeds)
             seeds.append(seed)
+        unseeded = (labels < 0) & ~torch.isin(key, key[seeds])
+        for value in torch.unique(key[unseeded]).tolist():
+            members = unseeded & (key == value)
+            labels[members] = len(seeds)
+            seeds.append(int(order[members[order]][0]))
         rest = labels < 0
         if rest.any():
             closeness = torch.abs(q[rest] @ q[seeds].T)
-            closeness = torch.where(shape[rest][:, None] == shape[seeds][None], closeness, -1.0)
+            closeness = torch.where(key[rest][:, None] == key[seeds][None], closeness, -1.0)
             labels[rest] = torch.argmax(closeness, dim=1)
         return labels, q[seeds]
 

@@ -161,6 +161,11 @@ class InversionOptions:
         PF roughening shrink factor.
     moves : int
         PF Metropolis–Hastings moves per resampling (0: roughening only).
+    mixture_tracking : bool
+        PF mixture tracking (Vermaak, Doucet & Pérez 2003): the particles seeded around
+        each search candidate form a mixture component that is resampled within itself,
+        so a mode that the early measurements disfavour keeps its particles and can win
+        later (see :mod:`filters.particle`).
     move_window : int
         Past measurements in the resample-move target.
     mode_angle_deg, mode_rate_deg_s : float
@@ -202,6 +207,7 @@ class InversionOptions:
     ess_threshold: float = 0.5
     bandwidth: float = 0.5
     moves: int = 0
+    mixture_tracking: bool = True
     move_window: int = 8
     mode_angle_deg: float = 10.0
     mode_rate_deg_s: float = 0.5
@@ -767,7 +773,7 @@ def _run_pf(
         for_pf=True,
     )
     found = _subset(found, slice(0, 2 * opt.hypotheses))
-    q, omega, k, shape, log_w = _seed_particles(ctx, found, prior, particles)
+    q, omega, k, shape, component, log_w = _seed_particles(ctx, found, prior, particles)
     groups = [ctx.symmetry(s) for s in range(model.n_shapes)]
     pf = AttitudeParticleFilter(
         q,
@@ -777,6 +783,7 @@ def _run_pf(
         k=k,
         shape=shape,
         principal_axes=[s.principal_axes for s in model.shapes.values()],
+        components=component if opt.mixture_tracking else None,
         likelihood=opt.likelihood,
         nu=opt.student_nu,
         ess_threshold=opt.ess_threshold,
@@ -934,7 +941,8 @@ def _seed_particles(
     fit (box, acceptance 3, seed 0 run 16: the search's best was 2.5° from the truth, the
     PF ended 76° off; with the cap 1.8°). The log-weights
     ``log prior(x) − log q(x)`` (``q`` the mixture density) make the particles a sample of
-    the prior, which the filter then updates with every measurement.
+    the prior, which the filter then updates with every measurement. The component each
+    particle was drawn from is returned for mixture tracking.
     """
     m = len(found)
     d = found.covariance.shape[1]
@@ -970,7 +978,7 @@ def _seed_particles(
         log_prior = -0.5 * np.sum(
             prior.residuals(torch.as_tensor(q), torch.as_tensor(omega)).numpy() ** 2, axis=1
         )
-    return q, omega, k, found.shape[component], log_prior - log_mixture
+    return q, omega, k, found.shape[component], component, log_prior - log_mixture
 
 
 def _folder(groups: Sequence[SymmetryGroup]) -> Callable:

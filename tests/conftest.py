@@ -4,7 +4,11 @@ import os
 
 import torch
 
-# pytest-xdist runs one worker per core; torch's own intra-op threads on top of that
-# oversubscribe the machine (each elementwise op then waits on spinning threads).
+# pytest-xdist runs one worker per core; torch's and BLAS's own threads on top of that
+# oversubscribe the machine (each elementwise op then waits on spinning threads). The
+# environment variables reach the processes the tests start too (notebook kernels, batch
+# workers, Dask workers), which read them when they import torch or numpy.
 if os.environ.get("PYTEST_XDIST_WORKER"):
     torch.set_num_threads(1)
+    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[variable] = "1"

@@ -136,7 +136,7 @@ def test_roughening_spreads_duplicates_after_resampling():
     )
     pf = AttitudeParticleFilter(q, np.zeros((1000, 3)), [INERTIA], seed=9, bandwidth=1.0)
     pf.log_weights = torch.log_softmax(torch.linspace(0, 20, 1000, dtype=torch.float64), 0)
-    pf._resample_move(None, 0)
+    pf._resample_move(torch.tensor([True]), None, 0)
     assert len(torch.unique(pf.q, dim=0)) > 900  # resampled copies were jittered apart
 
 
@@ -172,3 +172,63 @@ def test_shape_index_probabilities_follow_the_likelihood():
         pf.update(z, 0.02**2, measure_at(k))
     p = pf.shape_probabilities(2)
     assert p[0] > 0.99 and p.sum() == pytest.approx(1.0)
+
+
+def _two_hypotheses(components):
+    """200 particles about each of two attitudes 40° apart, at rest."""
+    rng = np.random.default_rng(11)
+    centers = random_quaternion(2, rng)
+    centers[1] = quaternion_multiply(
+        axis_angle_to_quaternion([1.0, 0, 0], math.radians(40)), centers[0]
+    )
+    spread = rotation_vector_to_quaternion(rng.normal(0, math.radians(0.5), (400, 3)))
+    q = quaternion_multiply(spread, np.repeat(centers, 200, axis=0))
+    labels = np.repeat([0, 1], 200)
+    pf = AttitudeParticleFilter(
+        q, np.zeros((400, 3)), [INERTIA], components=labels if components else None, seed=12
+    )
+    return pf, torch.as_tensor(centers)
+
+
+@pytest.mark.parametrize("components", [False, True])
+def test_mixture_tracking_keeps_a_mode_that_the_early_data_disfavour(components):
+    """Ten measurements of hypothesis B, then thirty of A: Bayes' rule over the whole
+    sequence favours A by a likelihood ratio of about e^±100s. Plain SIR resamples A's
+    particles away while B leads and cannot recover; mixture tracking (Vermaak et al.
+    2003) keeps A's particles and weight bookkeeping, so A ends with the posterior mass."""
+    pf, centers = _two_hypotheses(components)
+    sigma = 0.05
+    for k in range(40):
+        truth = centers[1] if k < 10 else centers[0]
+        z = float(rotate(truth, VECTORS[k % 2])[k % 3])
+        pf.update(z, sigma**2, _sensor(k))
+    near_a = attitude_angle(pf.q, centers[0][None]) < math.radians(5)
+    mass_a = float(pf.weights[near_a].sum())
+    if components:
+        assert pf.n_components == 2
+        assert int(near_a.sum()) == 200  # A's component kept every particle
+        assert mass_a > 0.999
+        assert pf.component_weights() == pytest.approx([mass_a, 1 - mass_a])
+    else:
+        assert int(near_a.sum()) == 0 and mass_a == 0.0
+
+
+def test_component_weights_follow_bayes_rule_through_resampling():
+    """Without roughening, a component's new weight is ``Σ_i∈c w_i p(z | x_i)``
+    normalised — checked to 1e-9 at every update, resampling included, with every
+    component keeping its particle count."""
+    pf, centers = _two_hypotheses(True)
+    pf.bandwidth = 0.0
+    rng = np.random.default_rng(13)
+    sigma = 0.01
+    resamplings = 0
+    for k in range(15):
+        z = float(rotate(centers[0], VECTORS[k % 2])[k % 3]) + rng.normal(0, sigma)
+        q, log_w, component = pf.q.clone(), pf.log_weights.clone(), pf.component.clone()
+        info = pf.update(z, sigma**2, _sensor(k), max_stages=1)
+        resamplings += info.resampled
+        posterior = torch.exp(log_w + pf.log_likelihood(_sensor(k)(q, None), z, sigma**2))
+        mass = torch.zeros(2, dtype=torch.float64).index_add_(0, component, posterior)
+        assert pf.component_weights() == pytest.approx((mass / mass.sum()).numpy(), rel=1e-9)
+        assert torch.bincount(pf.component).tolist() == [200, 200]
+    assert resamplings > 0
