@@ -22,7 +22,7 @@ def test_ci_runs_the_readme_test_command():
 
 def test_ci_runs_the_readme_main_job():
     command = readme_command("main-job")
-    assert "pip install torch==2.13.0" in command
+    assert re.search(r"pip install (--no-compile )?torch==2\.13\.0 ", command)
     assert "lightcurve invert data/observations" in command
     ci_lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines()]
     assert command in ci_lines
