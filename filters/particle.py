@@ -209,6 +209,8 @@ class AttitudeParticleFilter:
     ----------
     q, omega, k, shape, component, log_weights : tensors
         The particles.
+    n_components : int
+        Number of mixture components.
     """
 
     def __init__(
@@ -254,6 +256,8 @@ class AttitudeParticleFilter:
             raise ValueError(f"components must have shape ({n},), got {labels.shape}")
         _, dense = np.unique(labels, return_inverse=True)
         self.component = torch.as_tensor(dense.reshape(n), dtype=torch.long)
+        self.n_components = int(self.component.max()) + 1
+        self._counts = torch.bincount(self.component).to(dtype)
         self._group_components()
         self._normalise()
         self.inertias = torch.as_tensor(np.stack([np.asarray(j) for j in inertias]), dtype=dtype)
@@ -289,35 +293,28 @@ class AttitudeParticleFilter:
         self.log_weights = self.log_weights - total
         return float(total)
 
-    @property
-    def n_components(self) -> int:
-        """Number of mixture components."""
-        return int(self.component[-1]) + 1
-
     def component_weights(self) -> np.ndarray:
         """Weight ``π_c`` of each mixture component, shape (C,)."""
         return self._component_sums(self.weights).numpy()
 
     def _component_sums(self, values: torch.Tensor) -> torch.Tensor:
+        if self.n_components == 1:
+            return values.sum(dim=0, keepdim=True)
         return torch.zeros(self.n_components, dtype=values.dtype).index_add_(
             0, self.component, values
         )
 
     def _within_log_weights(self, log_weights: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Log-weights normalised within each component, and each component's log-mass."""
+        if self.n_components == 1:
+            total = torch.logsumexp(log_weights, dim=0)
+            return log_weights - total, total[None]
         peak = torch.full((self.n_components,), -math.inf, dtype=log_weights.dtype)
         peak = peak.scatter_reduce(0, self.component, log_weights, reduce="amax")
         peak = torch.where(torch.isfinite(peak), peak, torch.zeros_like(peak))
         mass = self._component_sums(torch.exp(log_weights - peak[self.component]))
         log_mass = torch.log(mass) + peak
         return log_weights - log_mass[self.component], log_mass
-
-    def _ess_fractions(self, log_weights: torch.Tensor) -> torch.Tensor:
-        """Effective sample size of each component over its particle count, shape (C,)."""
-        within, _ = self._within_log_weights(log_weights)
-        squares = self._component_sums(torch.exp(2.0 * within))
-        counts = self._component_sums(torch.ones_like(within))
-        return torch.nan_to_num(1.0 / (squares * counts), nan=0.0)
 
     def _group_components(self) -> None:
         """Reorder the particles so that every component is a contiguous block."""
@@ -431,8 +428,10 @@ class AttitudeParticleFilter:
         """Components (C,) bool whose effective size is below the threshold, among those
         weighing at least ``lightest`` times the heaviest; components without any weight
         left are never resampled."""
-        _, log_mass = self._within_log_weights(log_weights)
-        low = self._ess_fractions(log_weights) < self.ess_threshold
+        within, log_mass = self._within_log_weights(log_weights)
+        squares = self._component_sums(torch.exp(2.0 * within))
+        ess = torch.nan_to_num(1.0 / squares, nan=0.0)
+        low = ess < self.ess_threshold * self._counts
         floor = torch.max(log_mass) + (math.log(lightest) if lightest > 0.0 else -math.inf)
         return low & torch.isfinite(log_mass) & (log_mass >= floor)
 
@@ -512,7 +511,7 @@ class AttitudeParticleFilter:
         selected : (N,) bool tensor
             Slots that were resampled.
         """
-        counts = self._component_sums(torch.ones_like(within_weights))
+        counts = self._counts
         starts = torch.cumsum(counts, dim=0) - counts
         cumulative = torch.cumsum(within_weights, dim=0)
         before = torch.cat([cumulative.new_zeros(1), cumulative])[starts.long()]
