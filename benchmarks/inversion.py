@@ -45,9 +45,11 @@ from shapes import get_library
 BANK = ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing")
 
 
-def speed(particles: list[int], updates: int, seed: int) -> dict:
+def speed(particles: list[int], updates: int, seed: int, components: int = 12) -> dict:
     """Time of one PF update (likelihood, tempering, resampling and roughening included)
-    against one render of all particles, for several particle counts."""
+    against one render of all particles, for several particle counts; the particles form
+    ``components`` mixture components, as :func:`lightcurve.inversion.invert` seeds them
+    around its 12 search candidates by default."""
     scenario = Scenario(duration_s=120.0)
     shape = get_library().load("box_wing")
     rng = np.random.default_rng(seed)
@@ -59,7 +61,12 @@ def speed(particles: list[int], updates: int, seed: int) -> dict:
         spread = rng.standard_normal((n, 6)) * np.radians([2, 2, 2, 0.05, 0.05, 0.05])
         q = quaternion_multiply(rotation_vector_to_quaternion(spread[:, :3]), truth.q0)
         pf = AttitudeParticleFilter(
-            q, truth.omega0 + spread[:, 3:], [shape.inertia], seed=seed, dtype=torch.float64
+            q,
+            truth.omega0 + spread[:, 3:],
+            [shape.inertia],
+            components=np.arange(n) % components,
+            seed=seed,
+            dtype=torch.float64,
         )
         render_times, update_times, stages, resampled = [], [], 0, 0
         for j in range(updates):
@@ -96,6 +103,7 @@ def speed(particles: list[int], updates: int, seed: int) -> dict:
         "study": "pf-speed",
         "shape": "box_wing",
         "updates_per_size": updates,
+        "components": components,
         "seed": seed,
         "rows": rows,
         "log_log_slope_update_vs_particles": slope,
@@ -116,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         help="index of the first run (a study split in parts gives the same records)",
     )
     parser.add_argument("--shape", default=None, help="truth shape (ukf, pf)")
+    parser.add_argument("--components", type=int, default=12, help="PF mixture components (speed)")
     parser.add_argument("--particles", type=int, default=2000, help="PF particles")
     parser.add_argument("--duration", type=float, default=1200.0, help="arc length (s)")
     parser.add_argument(
@@ -181,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
             first=args.first_run,
         )
     else:
-        result = speed([1_000, 3_000, 10_000, 30_000, 100_000], 20, args.seed)
+        result = speed([1_000, 3_000, 10_000, 30_000, 100_000], 20, args.seed, args.components)
     result["runtime_s"] = time.perf_counter() - start
     result["machine"] = machine_info()
     result["command"] = "python -m benchmarks.inversion " + " ".join(argv or sys.argv[1:])

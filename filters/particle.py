@@ -72,9 +72,6 @@ __all__ = [
     "systematic_resample",
 ]
 
-#: Components lighter than this fraction of the heaviest are not tempered.
-TEMPERED_MASS = 1e-3
-
 #: ``measure(q (N, 4), shape (N,) long) → (N,)`` predicted measurements (torch).
 ParticleMeasure = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 #: ``target(q, ω, k, shape) → (N,)`` log-density used by resample-move.
@@ -424,37 +421,42 @@ class AttitudeParticleFilter:
             float(np.mean(acceptance)) if acceptance else math.nan,
         )
 
-    def _depleted(self, log_weights: torch.Tensor, lightest: float = 0.0) -> torch.Tensor:
-        """Components (C,) bool whose effective size is below the threshold, among those
-        weighing at least ``lightest`` times the heaviest; components without any weight
-        left are never resampled."""
+    def _component_ess(self, log_weights: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Effective sample size of every component over its particle count, and the
+        log-mass of every component, both (C,)."""
         within, log_mass = self._within_log_weights(log_weights)
         squares = self._component_sums(torch.exp(2.0 * within))
-        ess = torch.nan_to_num(1.0 / squares, nan=0.0)
-        low = ess < self.ess_threshold * self._counts
-        floor = torch.max(log_mass) + (math.log(lightest) if lightest > 0.0 else -math.inf)
-        return low & torch.isfinite(log_mass) & (log_mass >= floor)
+        return torch.nan_to_num(1.0 / (squares * self._counts), nan=0.0), log_mass
+
+    def _depleted(self, log_weights: torch.Tensor) -> torch.Tensor:
+        """Components (C,) bool whose effective size is below the threshold; components
+        without any weight left are never resampled."""
+        fraction, log_mass = self._component_ess(log_weights)
+        return (fraction < self.ess_threshold) & torch.isfinite(log_mass)
 
     def _tempering_step(self, loglik: torch.Tensor, remaining: float) -> float:
-        """Largest ``β ≤ remaining`` keeping the ESS of every component weighing at least
-        ``TEMPERED_MASS`` times the heaviest at the threshold or above (bisection). Lighter
-        components take the whole likelihood and are resampled after it: tempering them
-        too would cost a render of every particle per stage for mass that hardly counts."""
+        """Smallest ``β ≤ remaining`` (to 2⁻¹⁵ of ``remaining``, bisection) that takes the
+        weight-averaged effective fraction ``Σ_c π_c ESS_c/N_c`` below the threshold, so
+        that the stage ends with resampling the components below it; ``remaining`` when
+        the average stays above. With one component this is the usual ESS rule. Averaging
+        over the components by their weight keeps one tempering stage — one render of all
+        particles — per degeneracy event of the mixture instead of one per component."""
 
         def enough(beta: float) -> bool:
-            depleted = self._depleted(self.log_weights + beta * loglik, TEMPERED_MASS)
-            return not bool(depleted.any())
+            fraction, log_mass = self._component_ess(self.log_weights + beta * loglik)
+            mass = torch.softmax(log_mass, dim=0)
+            return float(torch.nansum(mass * fraction)) >= self.ess_threshold
 
         if enough(remaining):
             return remaining
         low, high = 0.0, remaining
-        for _ in range(30):
+        for _ in range(15):
             mid = 0.5 * (low + high)
             if enough(mid):
                 low = mid
             else:
                 high = mid
-        return max(low, 1e-6 * remaining)
+        return high
 
     # ------------------------------------------------------------------ resample-move
     def _resample_move(
@@ -465,7 +467,7 @@ class AttitudeParticleFilter:
         within_weights, log_mass = self._within_weights()
         kernel = None
         if self.bandwidth > 0.0:
-            labels, centers = self._cluster(self.q, self.omega, self._kernel_key(), within_weights)
+            labels, centers = self._kernel_clusters(within_weights)
             kernel = self._kernel_covariance(labels, centers, within_weights)
         index, selected = self._resample_within(within_weights, log_mass, depleted)
         if kernel is None:
@@ -529,9 +531,19 @@ class AttitudeParticleFilter:
         self.log_weights = torch.where(selected, equal, self.log_weights)
         return index, selected
 
-    def _kernel_key(self) -> torch.Tensor:
-        """Cluster key of the roughening kernel: clusters never mix components or shapes."""
-        return self.component * (int(self.shape.max()) + 1) + self.shape
+    def _kernel_clusters(self, within_weights: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Clusters of the roughening kernel and their centre attitudes: the mixture
+        components, each centred on its heaviest particle; with a single component, the
+        greedy clusters of :meth:`_cluster` (per shape)."""
+        if self.n_components == 1:
+            return self._cluster(self.q, self.omega, self.shape, within_weights)
+        c = self.component
+        heaviest = torch.full((self.n_components,), -1.0, dtype=within_weights.dtype)
+        heaviest = heaviest.scatter_reduce(0, c, within_weights, reduce="amax")
+        slot = torch.where(within_weights == heaviest[c], torch.arange(len(self)), len(self))
+        first = torch.full((self.n_components,), len(self), dtype=torch.long)
+        first = first.scatter_reduce(0, c, slot, reduce="amin")
+        return c, self.q[first]
 
     def _kernel_covariance(
         self, labels: torch.Tensor, centers: torch.Tensor, weights: torch.Tensor
