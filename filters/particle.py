@@ -595,7 +595,7 @@ class AttitudeParticleFilter:
         self, q: torch.Tensor, omega: torch.Tensor, key: torch.Tensor, weights: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
-        unassigned particle of its key (shape, or shape and component) within
+        unassigned particle of its key (the shape) within
         ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every key still
         without one gets one, and the rest join their nearest seed of the same key (so the
         cost stays ``O(max_clusters · N)``).
