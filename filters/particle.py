@@ -11,21 +11,24 @@ in log-weights:
   degrees of freedom, ``−(ν + 1)/2 · ln(1 + ν_i²/(ν R))``, which tolerates outliers.
 * **Tempering** (adaptive likelihood annealing, Neal 2001; Del Moral, Doucet & Jasra
   2006): when the whole likelihood would drop the effective sample size
-  ``ESS = 1/Σ w_i²`` below ``ess_threshold · N``, only the fraction ``β`` that keeps it
-  there (found by bisection) is applied; the particles are resampled and moved, their
-  likelihood re-evaluated, and the rest of the likelihood follows in further stages.
+  ``ESS = 1/Σ w_i²`` below ``ess_threshold · N``, only the fraction ``β`` that just
+  reaches it (found by bisection) is applied; the particles are resampled and moved,
+  their likelihood re-evaluated, and the rest of the likelihood follows in further
+  stages.
 * **Resampling**: systematic (Kitagawa 1996), whenever ESS falls below the threshold.
 * **Mixture tracking** (Vermaak, Doucet & Pérez 2003): optionally every particle belongs
   to a mixture *component* (e.g. the initial-search candidate it was seeded around). The
   filtering density is then ``Σ_c π_c p_c(x)``; the global weights still carry
-  ``π_c · w_{i|c}``, so ``π_c`` follows the component's predictive likelihood, but ESS,
-  tempering and resampling work *within* each component. A component whose weight falls
+  ``π_c · w_{i|c}``, so ``π_c`` follows the component's predictive likelihood, but the
+  ESS test, resampling and roughening work *within* each component, and tempering
+  follows the weight-averaged ``Σ_c π_c ESS_c/N_c``. A component whose weight falls
   to 10⁻⁸ keeps its particles and can win back weight later — plain SIR resampling
   would have drained it for good, which loses the true mode whenever a photometric twin
   fits the early measurements slightly better.
 * **Roughening / regularisation** (Musso, Oudjane & Le Gland 2001): after resampling,
   each particle is jittered by ``N(0, h² C_c)`` with ``C_c`` the weighted covariance of
-  its mode ``c`` in ``[δθ (rotation vector about the mode's mean attitude), ω, k]`` and the
+  its cluster ``c`` (its mixture component, or with one component a greedy cluster) in
+  ``[δθ (rotation vector about the cluster's centre attitude), ω, k]`` and the
   kernel bandwidth ``h = b (4/(d + 2))^{1/(d+4)} N_c^{−1/(d+4)}`` (``d`` the dimension,
   ``b ≤ 1`` a shrink factor). Per-mode covariances keep a multi-modal cloud from being
   smeared across its modes. The attitude jitter is applied on SO(3):
