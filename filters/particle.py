@@ -81,25 +81,37 @@ ParticleMeasure = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 MoveTarget = Callable[[torch.Tensor, torch.Tensor, Any, torch.Tensor], torch.Tensor]
 
 
-def systematic_resample(weights: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """Indices drawn by systematic resampling (one uniform offset for all draws).
+def systematic_resample(
+    weights: torch.Tensor, generator: torch.Generator, counts: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Indices drawn by systematic resampling, one uniform offset per block.
 
     Parameters
     ----------
     weights : (N,) tensor
-        Normalised weights.
+        Weights normalised within each block.
     generator : torch.Generator
+    counts : (C,) tensor, optional
+        Sizes of consecutive blocks resampled within themselves (mixture components);
+        omitted: one block of all N.
 
     Returns
     -------
     (N,) long tensor
+        Each slot's source index, inside the slot's own block.
     """
     n = len(weights)
-    offset = torch.rand((), generator=generator, dtype=weights.dtype)
-    positions = (offset + torch.arange(n, dtype=weights.dtype)) / n
+    counts = weights.new_full((1,), n) if counts is None else counts.to(weights.dtype)
+    block = torch.repeat_interleave(torch.arange(len(counts)), counts.long())
+    starts = torch.cumsum(counts, dim=0) - counts
     cumulative = torch.cumsum(weights, dim=0)
-    cumulative[-1] = 1.0
-    return torch.searchsorted(cumulative, positions).clamp(max=n - 1)
+    before = torch.cat([cumulative.new_zeros(1), cumulative])[starts.long()]
+    offsets = torch.rand(len(counts), generator=generator, dtype=weights.dtype)
+    slot = torch.arange(n, dtype=weights.dtype)
+    positions = before[block] + (offsets[block] + slot - starts[block]) / counts[block]
+    drawn = torch.searchsorted(cumulative, positions)
+    first, last = starts[block].long(), (starts[block] + counts[block] - 1).long()
+    return torch.minimum(torch.maximum(drawn, first), last)
 
 
 @dataclass(frozen=True)
@@ -516,21 +528,12 @@ class AttitudeParticleFilter:
         selected : (N,) bool tensor
             Slots that were resampled.
         """
-        counts = self._counts
-        starts = torch.cumsum(counts, dim=0) - counts
-        cumulative = torch.cumsum(within_weights, dim=0)
-        before = torch.cat([cumulative.new_zeros(1), cumulative])[starts.long()]
-        offsets = torch.rand(len(counts), generator=self.generator, dtype=within_weights.dtype)
         c = self.component
-        slot = torch.arange(len(self), dtype=within_weights.dtype)
-        positions = before[c] + (offsets[c] + slot - starts[c]) / counts[c]
-        drawn = torch.searchsorted(cumulative, positions)
-        first, last = starts[c].long(), (starts[c] + counts[c] - 1).long()
-        drawn = torch.minimum(torch.maximum(drawn, first), last)
+        drawn = systematic_resample(within_weights, self.generator, self._counts)
         selected = depleted[c]
         index = torch.where(selected, drawn, torch.arange(len(self)))
         self._take(index)
-        equal = (log_mass - torch.log(counts))[c]
+        equal = (log_mass - torch.log(self._counts))[c]
         self.log_weights = torch.where(selected, equal, self.log_weights)
         return index, selected
 
@@ -595,12 +598,12 @@ class AttitudeParticleFilter:
         return q, omega, k
 
     def _cluster(
-        self, q: torch.Tensor, omega: torch.Tensor, key: torch.Tensor, weights: torch.Tensor
+        self, q: torch.Tensor, omega: torch.Tensor, shape: torch.Tensor, weights: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
-        unassigned particle of its key (the shape) within
-        ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every key still
-        without one gets one, and the rest join their nearest seed of the same key (so the
+        unassigned particle of its shape within
+        ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every shape still
+        without one gets one, and the rest join their nearest seed of the same shape (so the
         cost stays ``O(max_clusters · N)``).
 
         Returns
@@ -621,22 +624,22 @@ class AttitudeParticleFilter:
             # angle(q, q_s) ≤ θ  ⇔  |q · q_s| ≥ cos(θ/2): one matrix-vector product.
             near = (
                 (labels < 0)
-                & (key == key[seed])
+                & (shape == shape[seed])
                 & (torch.abs(q @ q[seed]) >= cos_half)
                 & (torch.linalg.vector_norm(omega - omega[seed], dim=1) <= self.mode_rate)
             )
             near[seed] = True
             labels[near] = len(seeds)
             seeds.append(seed)
-        unseeded = (labels < 0) & ~torch.isin(key, key[seeds])
-        for value in torch.unique(key[unseeded]).tolist():
-            members = unseeded & (key == value)
+        unseeded = (labels < 0) & ~torch.isin(shape, shape[seeds])
+        for value in torch.unique(shape[unseeded]).tolist():
+            members = unseeded & (shape == value)
             labels[members] = len(seeds)
             seeds.append(int(order[members[order]][0]))
         rest = labels < 0
         if rest.any():
             closeness = torch.abs(q[rest] @ q[seeds].T)
-            closeness = torch.where(key[rest][:, None] == key[seeds][None], closeness, -1.0)
+            closeness = torch.where(shape[rest][:, None] == shape[seeds][None], closeness, -1.0)
             labels[rest] = torch.argmax(closeness, dim=1)
         return labels, q[seeds]
 

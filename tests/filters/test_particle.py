@@ -38,6 +38,14 @@ def test_systematic_resampling_counts_are_within_one_of_n_times_the_weight():
         index = systematic_resample(weights, torch.Generator().manual_seed(seed))
         counts = torch.bincount(index, minlength=5).to(torch.float64)
         assert torch.all(torch.abs(counts - 5 * weights) < 1.0 + 1e-12)
+    # Two blocks resampled within themselves: every draw stays in its block.
+    blocks = torch.tensor([0.7, 0.1, 0.2, 0.25, 0.25, 0.25, 0.25], dtype=torch.float64)
+    sizes = torch.tensor([3, 4])
+    for seed in range(20):
+        index = systematic_resample(blocks, torch.Generator().manual_seed(seed), sizes)
+        assert torch.all(index[:3] < 3) and torch.all(index[3:] >= 3)
+        counts = torch.bincount(index, minlength=7).to(torch.float64)
+        assert torch.all(torch.abs(counts - blocks * sizes.repeat_interleave(sizes)) < 1 + 1e-12)
 
 
 def test_gaussian_update_without_tempering_matches_bayes_rule():
