@@ -56,6 +56,7 @@ __all__ = [
     "BatchProblem",
     "Prior",
     "SearchResult",
+    "distinct_states",
     "global_search",
     "low_discrepancy_states",
     "prior_candidates",
@@ -552,6 +553,7 @@ def refine(
     iterations: int = 15,
     damping: float = 1e-2,
     prior: Prior | None = None,
+    t_start: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor, torch.Tensor]:
     """Batched Levenberg–Marquardt on ``[η, ω(, k)]`` (maximum a posteriori with a prior),
     Jacobians from :func:`residual_jacobian`; each accepted step turns the attitude,
@@ -571,6 +573,9 @@ def refine(
     prior : Prior, optional
         Adds the whitened prior deviations to the residuals (their Jacobian is taken as
         ``diag(1/σ)``, exact at the prior mean).
+    t_start : float
+        Epoch of the candidates (s, on the problem's time axis): 0 for initial states,
+        the last measurement's time to fit final states (epochs reached backwards).
 
     Returns
     -------
@@ -586,7 +591,7 @@ def refine(
     q = q0.detach().clone()
     v = omega0.detach() if k is None else torch.cat([omega0.detach(), k.detach()], dim=1)
     mu = torch.full((n,), damping, dtype=q0.dtype)
-    r, jac = residual_jacobian(problem, q, v, shape, epochs, prior)
+    r, jac = residual_jacobian(problem, q, v, shape, epochs, prior, t_start)
     chi2 = torch.nan_to_num((r * r).sum(dim=1), nan=math.inf)
     stalled = 0
     for _ in range(iterations):
@@ -599,7 +604,9 @@ def refine(
         q_trial = quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), q)
         v_trial = v + step[:, 3:]
         # The trial point is linearised at once: accepted steps need no second pass.
-        r_trial, jac_trial = residual_jacobian(problem, q_trial, v_trial, shape, epochs, prior)
+        r_trial, jac_trial = residual_jacobian(
+            problem, q_trial, v_trial, shape, epochs, prior, t_start
+        )
         chi2_trial = torch.nan_to_num((r_trial * r_trial).sum(dim=1), nan=math.inf)
         better = chi2_trial < chi2
         progress_made = better & (chi2 - chi2_trial > 1e-4 * chi2)
@@ -632,41 +639,38 @@ def _gauss_newton_covariance(jac: torch.Tensor) -> torch.Tensor:
     return torch.where(finite[:, None, None], covariance, uninformed)
 
 
-def _with_twins(problem, twin, q, w, k, shape, chi2, covariance, epochs, iterations, prior):
-    """Append the refined twins of the candidates to the candidate set."""
-    q2, w2, has = twin(q.numpy(), w.numpy(), shape.numpy())
-    rows = torch.as_tensor(np.flatnonzero(has))
-    if len(rows) == 0:
-        return q, w, k, shape, chi2, covariance
-    k2 = None if k is None else k[rows]
-    q2, w2, k2, chi2_2, cov2 = refine(
-        problem,
-        torch.as_tensor(q2[has], dtype=q.dtype),
-        torch.as_tensor(w2[has], dtype=w.dtype),
-        k2,
-        shape[rows],
-        epochs,
-        iterations,
-        prior=prior,
-    )
-    return (
-        torch.cat([q, q2]),
-        torch.cat([w, w2]),
-        None if k is None else torch.cat([k, k2]),
-        torch.cat([shape, shape[rows]]),
-        torch.cat([chi2, chi2_2]),
-        torch.cat([covariance, cov2]),
-    )
+def _with_twins(problem, twins, q, w, k, shape, chi2, covariance, epochs, iterations, prior):
+    """Append the refined twins of the candidates (every kind ``twins`` returns) to the
+    candidate set; also returns ``1 +`` the number of kinds that any candidate has."""
+    parts = [(q, w, k, shape, chi2, covariance)]
+    for q2, w2, has in twins(q.numpy(), w.numpy(), shape.numpy()):
+        rows = torch.as_tensor(np.flatnonzero(has))
+        if len(rows) == 0:
+            continue
+        fitted = refine(
+            problem,
+            torch.as_tensor(q2[has], dtype=q.dtype),
+            torch.as_tensor(w2[has], dtype=w.dtype),
+            None if k is None else k[rows],
+            shape[rows],
+            epochs,
+            iterations,
+            prior=prior,
+        )
+        parts.append((*fitted[:3], shape[rows], *fitted[3:]))
+    merged = (None if k is None and i == 2 else torch.cat([p[i] for p in parts]) for i in range(6))
+    return (*merged, len(parts))
 
 
-def _distinct(
+def distinct_states(
     q: np.ndarray,
     omega: np.ndarray,
     shape: np.ndarray,
     angle: float,
     rate: float,
     groups: Sequence[SymmetryGroup] | None = None,
-) -> np.ndarray:
+    owners: bool = False,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Indices of candidates (already sorted by cost) not duplicating a better one.
 
     A duplicate has the same shape, an attitude within ``angle`` (rad) of a kept
@@ -674,6 +678,9 @@ def _distinct(
     groups) and inertial rates ``A(q)ᵀ ω`` within ``rate`` (rad/s). Inertial rates are
     the same for every symmetry-equivalent state (``ω' = R_g ω``, ``A' = R_g A``), so
     equivalent states of a symmetric shape are one candidate, not ``|G|``.
+
+    With ``owners``, also returns for every candidate the index of the kept one it
+    duplicates (its own index when kept).
     """
     omega_inertial = np.einsum("nji,nj->ni", attitude_matrix(q), omega)
     close = np.zeros((len(q), len(q)), dtype=bool)
@@ -685,13 +692,13 @@ def _distinct(
         w = omega_inertial[rows]
         near = (separation < angle) & (np.linalg.norm(w[:, None] - w[None, :], axis=-1) < rate)
         close[np.ix_(rows, rows)] = near
-    duplicate = np.zeros(len(q), dtype=bool)
-    kept = []
+    owner = np.full(len(q), -1)
     for i in range(len(q)):
-        if not duplicate[i]:
-            kept.append(i)
-            duplicate |= close[i]
-    return np.asarray(kept, dtype=int)
+        if owner[i] < 0:
+            owner[(owner < 0) & close[i]] = i
+            owner[i] = i
+    kept = np.flatnonzero(owner == np.arange(len(q)))
+    return (kept, owner) if owners else kept
 
 
 def _best_distinct(
@@ -706,7 +713,7 @@ def _best_distinct(
     groups: Sequence[SymmetryGroup] | None,
 ) -> torch.Tensor:
     """Indices of the ``count`` lowest-cost candidates (overall or for every shape index)
-    after dropping duplicates of better ones (:func:`_distinct`).
+    after dropping duplicates of better ones (:func:`distinct_states`).
 
     Refined candidates collapse onto few minima: on a 120 s window, 128 survivors measured
     3 distinct states (box-wing, acceptance 1, seed 0 run 17), the best 24 of them all
@@ -716,7 +723,7 @@ def _best_distinct(
     """
     order = torch.argsort(cost).numpy()
     unique = order[
-        _distinct(
+        distinct_states(
             q.detach().numpy()[order],
             omega.detach().numpy()[order],
             shape.numpy()[order],
@@ -792,9 +799,10 @@ def global_search(
     max_epochs: int = 90,
     iterations: int = 15,
     tolerance: float = 0.0,
-    twin: Callable[[np.ndarray, np.ndarray, np.ndarray], tuple] | None = None,
+    twins: Callable[[np.ndarray, np.ndarray, np.ndarray], Sequence[tuple]] | None = None,
     rounds: int = 1,
     good_fit: float = 2.0,
+    min_improvement: float = 0.0,
     per_shape: bool = False,
     distinct_angle: float = math.radians(3.0),
     distinct_rate: float = math.radians(0.05),
@@ -831,19 +839,24 @@ def global_search(
         LM iterations per window.
     tolerance : float
         Screening tolerance (see :func:`screen`).
-    twin : callable, optional
-        ``twin(q, ω, shape) → (q', ω', has_twin)``: states that fit short arcs as well
-        as the given ones (the mirror ambiguity of mirror-symmetric shapes,
-        :meth:`filters.symmetry.SymmetryGroup.mirror_twin`). At the first window after
-        which ``keep`` drops fourfold or more, the twins of the survivors are refined
-        too, so both members of every ambiguous pair reach the longer windows, where the
-        data can tell them apart.
+    twins : callable, optional
+        ``twins(q, ω, shape) → [(q', ω', has_twin), …]``, one triple per kind of twin:
+        states that fit short arcs as well as the given ones (the reciprocity twin of any
+        shape, :func:`lightcurve.geometry.reciprocity_twin`; the mirror twin of a
+        mirror-symmetric one, :meth:`filters.symmetry.SymmetryGroup.mirror_twin`). At the
+        first window after which ``keep`` drops fourfold or more, the twins of the
+        survivors are refined too, so every member of an ambiguous set reaches the longer
+        windows, where the data can tell them apart.
     rounds : int
         Further rounds with fresh candidates are run, up to this many in total, while the
         best fit is poor: ``χ²/E > good_fit`` on the final window of ``E`` measurements.
     good_fit : float
         ``χ²`` per measurement (measurement errors included, prior rows not counted) below
         which the search stops.
+    min_improvement : float
+        The search also stops when a further round lowers the best data ``χ²`` by less
+        than this fraction: two rounds of fresh candidates that agree on a poor fit point
+        to the model, not to the search (a shape outside a bank).
     per_shape : bool
         Every stage keeps its count of candidates for each shape (a multiple-model bank
         needs a fit for every candidate shape) instead of the best overall.
@@ -852,7 +865,7 @@ def global_search(
         duplicates.
     groups : sequence of SymmetryGroup, optional
         Rotational symmetry group of each shape index: symmetry-equivalent candidates are
-        duplicates (:func:`_distinct`).
+        duplicates (:func:`distinct_states`).
     progress : callable, optional
         Receives a short message after each stage.
 
@@ -879,17 +892,17 @@ def global_search(
             max_epochs,
             iterations,
             tolerance,
-            twin,
+            twins,
             progress,
             per_shape,
             (distinct_angle, distinct_rate, groups),
         )
         found.append(part[:8])
         screened += part[7]
-        best_data = min(best_data, float(part[8].min()))
+        previous, best_data = best_data, min(best_data, float(part[8].min()))
         if progress:
             progress(f"round {round_ + 1}: best χ² {best_data:.1f} on {len(part[6])} measurements")
-        if best_data <= good_fit * len(part[6]):
+        if best_data <= good_fit * len(part[6]) or best_data > (1.0 - min_improvement) * previous:
             break
     q, w, k, shape, chi2, covariance, epochs, _ = (
         torch.cat([p[i] for p in found]) if i not in (2, 6, 7) else found[-1][i] for i in range(8)
@@ -900,7 +913,7 @@ def global_search(
     q_np = q.detach().numpy()[order]
     w_np = w.detach().numpy()[order]
     shape_np = shape.numpy()[order]
-    kept = order[_distinct(q_np, w_np, shape_np, distinct_angle, distinct_rate, groups)]
+    kept = order[distinct_states(q_np, w_np, shape_np, distinct_angle, distinct_rate, groups)]
     return SearchResult(
         q=q.detach().numpy()[kept],
         omega=w.detach().numpy()[kept],
@@ -926,7 +939,7 @@ def _search_round(
     max_epochs,
     iterations,
     tolerance,
-    twin,
+    twins,
     progress,
     per_shape,
     distinct,
@@ -979,7 +992,7 @@ def _search_round(
         q, w, k, chi2, covariance = refine(
             problem, q, w, k, shape, epochs, iterations, prior=fit_prior
         )
-        if stage == twin_stage and twin is not None and len(keep) > 1:
+        if stage == twin_stage and twins is not None and len(keep) > 1:
             # Twins of the candidates that go on, refined on the same window.
             best = _best_distinct(q, w, shape, chi2, keep[stage + 1], per_shape, *distinct)
             q, w, shape, chi2, covariance = (
@@ -990,10 +1003,9 @@ def _search_round(
                 covariance[best],
             )
             k = None if k is None else k[best]
-            q, w, k, shape, chi2, covariance = _with_twins(
-                problem, twin, q, w, k, shape, chi2, covariance, epochs, iterations, fit_prior
+            q, w, k, shape, chi2, covariance, factor = _with_twins(
+                problem, twins, q, w, k, shape, chi2, covariance, epochs, iterations, fit_prior
             )
-            factor = 2
         if progress:
             progress(f"refined {len(q)} candidates on {duration:.0f} s, best χ² {chi2.min():.1f}")
     # The stopping test looks at the data part of χ² only.

@@ -674,7 +674,10 @@ class AttitudeParticleFilter:
             total = float(w.sum())
             if total < min_weight:
                 continue
-            wn = w / w.sum()
+            # normalised in the log domain: defined even when the total underflows to 0
+            log_w = self.log_weights[members]
+            finite = bool(torch.isfinite(log_w).any())
+            wn = torch.softmax(log_w, dim=0) if finite else torch.full_like(log_w, 1 / len(log_w))
             qm = quaternion_mean(q[members], wn)
             wm = (wn[:, None] * omega[members]).sum(dim=0)
             angle = attitude_angle(q[members], qm[None])

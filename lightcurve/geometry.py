@@ -1,4 +1,5 @@
-"""Observation geometry: directions, ranges, phase angle and the phase-angle bisector.
+"""Observation geometry: directions, ranges, phase angle, the phase-angle bisector and
+the reciprocity twin of an attitude.
 
 Inputs are object → Sun and object → observer vectors in the inertial frame (metres). The
 body-frame directions used by the renderer are ``A(q) û`` (attitude core). The Sun's flux
@@ -9,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from filters.attitude import rotate
+from filters.attitude import quaternion_multiply, rotate
 from filters.attitude._array import as_arrays, cross
 
 __all__ = [
@@ -17,6 +18,7 @@ __all__ = [
     "body_directions",
     "phase_angle",
     "phase_angle_bisector",
+    "reciprocity_twin",
     "solar_flux_scale",
     "unit_and_range",
 ]
@@ -81,6 +83,39 @@ def phase_angle_bisector(sun: Any, observer: Any) -> Any:
     o, _ = unit_and_range(observer)
     h, _ = unit_and_range(s + o)
     return h
+
+
+def reciprocity_twin(q: Any, sun: Any, observer: Any) -> Any:
+    """The attitude that sees the Sun where ``q`` sees the observer, and vice versa.
+
+    With ``h`` the phase-angle bisector and ``R_h = 2 h hᵀ − I`` the half-turn about it
+    (``R_h ŝ = ô``), the twin ``A(q') = A(q) R_h``, i.e. ``q' = q ⊗ [h, 0]``, has body-frame
+    Sun and observer directions ``L' = V`` and ``V' = L``. Every reciprocal BRDF
+    (``f(L, V) = f(V, L)``: Lambert, Phong, Cook–Torrance, Ashikhmin–Shirley) and the
+    lit-and-visible test of self-shadowing are symmetric in the swap, so the twin renders
+    exactly the same brightness, for any shape. Body rates are unchanged (the half-turn
+    is fixed in inertial space), so while the Sun and the observer stand still the whole
+    light curve of ``(q', ω)`` equals that of ``(q, ω)``: an ambiguity of single-site
+    photometry that only the motion of the bisector resolves. From a geostationary orbit
+    the bisector turns about 0.13° per minute, so a 10 min arc barely separates the twins
+    and a 20 min arc does (the χ² gap grows as the cube of the arc length).
+
+    Parameters
+    ----------
+    q : (..., 4) array
+        Attitudes (inertial → body).
+    sun, observer : (..., 3) array
+        Object → Sun and object → observer vectors, inertial frame, at the epoch of ``q``.
+
+    Returns
+    -------
+    (..., 4) array
+        The twin attitudes, same kind as ``q``; undefined (NaN) at phase angle π.
+    """
+    xp, (q, s, o) = as_arrays(q, sun, observer)
+    h = phase_angle_bisector(s, o)
+    half_turn = xp.concat([h, xp.zeros_like(h[..., :1])], axis=-1)
+    return quaternion_multiply(q, half_turn)
 
 
 def body_directions(q: Any, sun: Any, observer: Any) -> tuple[Any, Any]:

@@ -22,8 +22,9 @@ from filters.global_search import (
     BatchProblem,
     Prior,
     _best_distinct,
-    _distinct,
     _replenish,
+    _with_twins,
+    distinct_states,
     global_search,
     refine,
     residual_jacobian,
@@ -86,16 +87,22 @@ def test_jacobian_matches_finite_differences_of_the_residuals():
             assert torch.allclose(jac[..., j], numeric, rtol=1e-3, atol=1e-4 * numeric.abs().max())
 
 
-def test_levenberg_marquardt_recovers_the_truth_and_its_covariance():
+@pytest.mark.parametrize("at_end", [False, True], ids=["initial-state", "final-state"])
+def test_levenberg_marquardt_recovers_the_truth_and_its_covariance(at_end):
+    """Initial states (t_start = 0), and final states fitted backwards over the arc."""
     q0 = random_quaternion((), 3)
     w0 = np.radians([1.5, 2.5, -1.0])
     problem = _problem(q0, w0, seconds=200, sigma=0.002)
+    t_start = float(problem.times[-1]) if at_end else 0.0
+    truth = propagate(np.concatenate([q0, w0]), problem.times, INERTIA)[-1 if at_end else 0]
+    q_true, w_true = truth[:4], truth[4:]
     rng = np.random.default_rng(4)
     n = 4
     starts = quaternion_multiply(
-        axis_angle_to_quaternion(rng.standard_normal((n, 3)), np.full(n, math.radians(8))), q0
+        axis_angle_to_quaternion(rng.standard_normal((n, 3)), np.full(n, math.radians(8))),
+        q_true,
     )
-    w_start = w0 + rng.normal(0, math.radians(0.1), (n, 3))
+    w_start = w_true + rng.normal(0, math.radians(0.1), (n, 3))
     epochs = np.arange(len(problem.times))
     q, w, k, chi2, cov = refine(
         problem,
@@ -105,16 +112,42 @@ def test_levenberg_marquardt_recovers_the_truth_and_its_covariance():
         torch.zeros(n, dtype=torch.long),
         epochs,
         iterations=25,
+        t_start=t_start,
     )
-    errors = np.degrees(attitude_angle(q.numpy(), q0))
+    errors = np.degrees(attitude_angle(q.numpy(), q_true))
     assert np.all(errors < 0.3), errors
-    assert np.allclose(w.numpy(), w0, atol=math.radians(0.01))
+    assert np.allclose(w.numpy(), w_true, atol=math.radians(0.01))
     # χ² of a correct fit: E − 6 degrees of freedom (5σ tolerance).
     dof = len(epochs) - 6
     assert np.all(np.abs(chi2.numpy() - dof) < 5 * math.sqrt(2 * dof))
     sigma = np.degrees(np.sqrt(np.trace(cov.numpy()[:, :3, :3], axis1=1, axis2=2)))
     assert np.all(errors < 5 * sigma) and np.all(sigma < 0.3)
     assert k is None
+
+
+def test_every_kind_of_twin_is_refined_and_counted():
+    """``twins`` may return several kinds; a kind no candidate has adds nothing."""
+    q0 = random_quaternion((), 9)
+    w0 = np.radians([1.0, 2.0, -1.5])
+    problem = _problem(q0, w0, seconds=60)
+    q = torch.as_tensor(random_quaternion(4, 10))
+    w = torch.as_tensor(np.tile(w0, (4, 1)))
+    shape = torch.tensor([0, 0, 1, 1])
+    half_turn = np.array([0.0, 0.0, 1.0, 0.0])
+    calls = []
+
+    def twins(q_, w_, s_):
+        calls.append(len(q_))
+        turned = quaternion_multiply(q_, half_turn)
+        return [(turned, w_, s_ == 1), (turned, -w_, np.zeros(len(q_), bool)), (q_, w_, s_ >= 0)]
+
+    chi2, cov = torch.zeros(4, dtype=torch.float64), torch.zeros(4, 6, 6, dtype=torch.float64)
+    out = _with_twins(problem, twins, q, w, None, shape, chi2, cov, np.arange(10), 2, None)
+    q2, w2, k2, shape2, chi2_2, cov2, factor = out
+    assert calls == [4] and factor == 3 and k2 is None
+    assert len(q2) == len(w2) == len(shape2) == len(chi2_2) == len(cov2) == 4 + 2 + 4
+    assert shape2.tolist() == [0, 0, 1, 1, 1, 1, 0, 0, 1, 1]
+    assert torch.all(chi2_2[4:] > 0)  # the twins carry their own refined fit
 
 
 def test_prior_pulls_an_uninformative_fit_to_the_prior_mean():
@@ -219,17 +252,15 @@ def test_distinct_merges_symmetry_equivalent_states_and_near_duplicates():
     ws = np.vstack([w, w_eq, w_near, w[2] + np.radians([0.5, 0, 0])])
     shape = np.zeros(6, dtype=int)
     angle, rate = math.radians(3.0), math.radians(0.05)
-    assert list(_distinct(qs, ws, shape, angle, rate, [group])) == [0, 1, 2, 5]
+    assert list(distinct_states(qs, ws, shape, angle, rate, [group])) == [0, 1, 2, 5]
     # without the group the equivalent attitude (a half-turn away) counts as distinct
-    assert list(_distinct(qs, ws, shape, angle, rate)) == [0, 1, 2, 3, 5]
+    assert list(distinct_states(qs, ws, shape, angle, rate)) == [0, 1, 2, 3, 5]
     # another shape index never duplicates
-    assert list(_distinct(qs, ws, np.array([0, 0, 0, 1, 0, 0]), angle, rate, [group] * 2)) == [
-        0,
-        1,
-        2,
-        3,
-        5,
-    ]
+    other = np.array([0, 0, 0, 1, 0, 0])
+    assert list(distinct_states(qs, ws, other, angle, rate, [group] * 2)) == [0, 1, 2, 3, 5]
+    # every duplicate names the kept candidate it duplicates
+    kept, owner = distinct_states(qs, ws, shape, angle, rate, [group], owners=True)
+    assert list(kept) == [0, 1, 2, 5] and list(owner) == [0, 1, 2, 0, 1, 5]
     cost = torch.tensor([5.0, 1.0, 3.0, 0.5, 0.9, 4.0], dtype=torch.float64)
     best = _best_distinct(
         torch.as_tensor(qs),

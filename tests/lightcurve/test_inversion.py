@@ -151,21 +151,41 @@ def test_mmae_picks_the_true_shape_and_flags_a_truth_outside_the_bank():
     assert outside["records"][0]["none_fits"], outside["records"]
 
 
-def test_pf_reports_the_truth_among_the_modes_of_a_box():
-    """Acceptance 3 reduced: uniform attitude prior, |ω| ≤ 5°/s, a box (4 rotational
-    symmetries, mirror planes); 5-min arc, 600 particles."""
+def _reduced_pf_run(shape_name: str, seed: int) -> dict:
+    """One PF study run: uniform attitude prior, |ω| ≤ 5°/s, 5-min arc, 600 particles."""
     study = pf_study(
         runs=1,
-        seed=3,
-        shape_name="box",
+        seed=seed,
+        shape_name=shape_name,
         scenario=Scenario(duration_s=300.0, rate_deg_s=(0.5, 5.0)),
         particles=600,
         # the PF's own refinement schedule: its search runs on to the whole arc
         **{k: v for k, v in LIGHT.items() if k != "refine_keep"},
     )
-    record = study["records"][0]
+    return study["records"][0]
+
+
+def test_pf_reports_the_truth_among_the_modes_of_a_box():
+    """Acceptance 3 reduced: uniform attitude prior, |ω| ≤ 5°/s, a box (4 rotational
+    symmetries, mirror planes); 5-min arc, 600 particles."""
+    record = _reduced_pf_run("box", seed=3)
     assert record["truth_in_modes"], record
     assert sum(record["mode_weights"]) == pytest.approx(1.0, abs=0.02)
+
+
+def test_pf_polishes_its_modes_on_the_whole_arc():
+    """Itokawa (no symmetry), uniform prior, 5-min arc, 600 particles: the particle mean
+    ends 3.7° from the truth; the heaviest mode polished on the whole arc is within 2°
+    with a consistent covariance (NEES below the 99.9 % point of χ²₆); the two PF
+    clusters in the truth's basin, which reach the same optimum, are one mode, and the
+    only other mode is the reciprocity twin, which 5 min from GEO barely tell apart."""
+    record = _reduced_pf_run("itokawa", seed=1)
+    assert record["attitude_error_deg"] < 2.0, record
+    assert record["attitude_error_deg"] < record["filter_attitude_error_deg"] - 1.0, record
+    assert record["nees"] < 22.46, record
+    errors, weights = record["mode_errors_deg"], record["mode_weights"]
+    assert sum(weights) == pytest.approx(1.0) and weights == sorted(weights, reverse=True)
+    assert len(errors) <= 2 and all(e > 170.0 for e in errors[1:]), record
 
 
 def test_geometry_of_the_scenario_is_cached_and_dark_free():
