@@ -134,6 +134,14 @@ class Prior:
     attitude_sigma: float
     omega_sigma: Any
 
+    @classmethod
+    def rates_only(cls, omega_max: float) -> Prior:
+        """The weak rate prior ``ω ~ N(0, omega_max²)`` with no attitude term, which bounds
+        the rates along directions the data leave unobserved (the spin about a symmetry
+        axis): without it Levenberg–Marquardt wanders there to rates where the
+        propagation breaks down."""
+        return cls(np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), math.inf, omega_max)
+
     def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """``n`` draws; the first one is the prior mean itself."""
         dtheta = rng.standard_normal((n, 3)) * self.attitude_sigma
@@ -669,8 +677,7 @@ def distinct_states(
     angle: float,
     rate: float,
     groups: Sequence[SymmetryGroup] | None = None,
-    owners: bool = False,
-) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+) -> np.ndarray:
     """Indices of candidates (already sorted by cost) not duplicating a better one.
 
     A duplicate has the same shape, an attitude within ``angle`` (rad) of a kept
@@ -678,9 +685,6 @@ def distinct_states(
     groups) and inertial rates ``A(q)ᵀ ω`` within ``rate`` (rad/s). Inertial rates are
     the same for every symmetry-equivalent state (``ω' = R_g ω``, ``A' = R_g A``), so
     equivalent states of a symmetric shape are one candidate, not ``|G|``.
-
-    With ``owners``, also returns for every candidate the index of the kept one it
-    duplicates (its own index when kept).
     """
     omega_inertial = np.einsum("nji,nj->ni", attitude_matrix(q), omega)
     close = np.zeros((len(q), len(q)), dtype=bool)
@@ -692,13 +696,13 @@ def distinct_states(
         w = omega_inertial[rows]
         near = (separation < angle) & (np.linalg.norm(w[:, None] - w[None, :], axis=-1) < rate)
         close[np.ix_(rows, rows)] = near
-    owner = np.full(len(q), -1)
+    duplicate = np.zeros(len(q), dtype=bool)
+    kept = []
     for i in range(len(q)):
-        if owner[i] < 0:
-            owner[(owner < 0) & close[i]] = i
-            owner[i] = i
-    kept = np.flatnonzero(owner == np.arange(len(q)))
-    return (kept, owner) if owners else kept
+        if not duplicate[i]:
+            kept.append(i)
+            duplicate |= close[i]
+    return np.asarray(kept, dtype=int)
 
 
 def _best_distinct(
@@ -948,10 +952,7 @@ def _search_round(
     window, the number screened and the data part of χ²."""
     if prior is None:
         candidates = uniform_candidates(problem, n_candidates, omega_max, rng, n_shapes)
-        # The least squares get a weak rate prior N(0, ω_max²) (no attitude term): a
-        # shape with a symmetry axis leaves the spin about it unobserved, and without it
-        # LM wanders there to rates where the propagation breaks down.
-        fit_prior = Prior(np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), math.inf, omega_max)
+        fit_prior = Prior.rates_only(omega_max)
     else:
         candidates = prior_candidates(problem, n_candidates, prior, rng, range(n_shapes))
         fit_prior = prior

@@ -866,12 +866,12 @@ def _run_pf(
             ctx.report(0.3 + 0.7 * j / n, f"pf: {j}/{n} measurements, ESS {pf.ess:.0f}")
     estimates = pd.DataFrame(rows)
     probabilities = pf.shape_probabilities(model.n_shapes)
-    q_est, w_est, cov = pf.estimate(fold=fold)
     if opt.polish and opt.likelihood == "gaussian":
         modes, covariances = _polish(ctx, pf.modes(min_weight=0.0, fold=fold))
         q_est, w_est, cov = modes[0].quaternion, modes[0].omega, covariances[0]
     else:
         modes = pf.modes(min_weight=opt.min_mode_weight, fold=fold)
+        q_est, w_est, cov = pf.estimate(fold=fold)
     best = modes[0].shape if modes else int(np.argmax(probabilities))
     name = ctx.names[best]
     mode_dicts = []
@@ -963,7 +963,7 @@ def _polish(ctx: _Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.nd
     omega = torch.as_tensor(np.stack([m.omega for m in clusters]))
     k = None if clusters[0].k is None else torch.as_tensor(np.stack([m.k for m in clusters]))
     shape = torch.as_tensor([m.shape for m in clusters])
-    weak = Prior(np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), math.inf, ctx.omega_max)
+    weak = Prior.rates_only(ctx.omega_max)
     q2, w2, k2, chi2, covariance = refine(
         problem,
         q,
