@@ -90,7 +90,7 @@ Progress = Callable[[float, str], None]
 #: Default candidates refined per window by the UKF/MMAE search (see ``refine_keep``).
 FILTER_REFINE_KEEP = (128, 128, 128, 24, 6)
 #: Default for the PF's search, whose windows run on to the whole arc.
-PF_REFINE_KEEP = (128, 128, 128, 128, 24, 6)
+PF_REFINE_KEEP = (128, 128, 128, 128, 128, 24, 6)
 
 
 @dataclass(frozen=True)
@@ -113,18 +113,25 @@ class InversionOptions:
         data: on a box at up to 5°/s a wrong state fitted the first 300 s better than the
         truth (χ² 78.3 against 79.8 on 90 measurements) and only the 480 s window told
         them apart.
+    pf_window_growth : float
+        Growth factor of the PF search's successive windows (the UKF/MMAE search doubles
+        them). A fit to a short window leaves a rate error that a longer window turns into
+        an attitude error; at 4°/s the 120 s fit nearest the truth was 12.7° and 0.62°/s
+        off and lost the truth's basin on the 240 s window, while growing 1.5-fold reached
+        it at 152 s.
     local_candidates : int
         Prior draws screened per shape when ``q0`` is given.
     global_candidates : int
         Uniform candidates screened (per shape) without ``q0`` and for the PF.
     refine_keep : tuple of int, optional
         Candidates (per shape) refined on each growing window (30 s, doubling up to
-        ``init_window_s`` or ``pf_window_s``); default ``(128, 128, 128, 24, 6)`` for the
-        UKF/MMAE and ``(128, 128, 128, 128, 24, 6)`` for the PF, whose longer windows need
-        many candidates up to 240 s. The first count on the first window, the last on the
-        last and the ones between on the windows between (the last of them repeated). Short
-        windows are fitted equally well by many states, so many candidates go on until
-        the 120 s window ranks them. The photometric twins of the candidates kept at the
+        ``init_window_s``, or growing ``pf_window_growth``-fold up to ``pf_window_s``);
+        default ``(128, 128, 128, 24, 6)`` for the UKF/MMAE and
+        ``(128, 128, 128, 128, 128, 24, 6)`` for the PF, whose windows 30, 45, 68, 101 and
+        152 s then carry 128 candidates. The first count on the first window, the last on
+        the last and the ones between on the windows between (the last of them repeated).
+        Short windows are fitted equally well by many states, so many candidates go on until
+        a window of 120–150 s ranks them. The photometric twins of the candidates kept at the
         first hard cut are refined too: the mirror twins of a mirror-symmetric shape and,
         in a search without ``q0``, the reciprocity twins of every candidate.
     hypotheses : int
@@ -141,7 +148,12 @@ class InversionOptions:
         outside the bank every round fits poorly, and further rounds cost time without
         changing the answer. The PF's search runs all its rounds while the fit is poor.
     max_epochs : int
-        Measurements per refinement window.
+        Measurements per refinement window, at least.
+    max_sample_rotation_deg : float
+        Longest rotation (deg) at ``omega_max`` between the measurements of a refinement
+        window: longer windows get more than ``max_epochs`` measurements, so that a fast
+        rotator's light curve is not aliased (see
+        :func:`filters.global_search.global_search`).
     process_noise_attitude : float
         UKF attitude noise density, rad²/s.
     process_noise_rate : float
@@ -201,6 +213,7 @@ class InversionOptions:
     init: str = "search"
     init_window_s: float = 300.0
     pf_window_s: float = 1200.0
+    pf_window_growth: float = 1.5
     local_candidates: int = 1024
     global_candidates: int = 20_000
     refine_keep: tuple[int, ...] | None = None
@@ -209,6 +222,7 @@ class InversionOptions:
     search_rounds: int = 3
     search_min_improvement: float = 0.1
     max_epochs: int = 90
+    max_sample_rotation_deg: float = 20.0
     process_noise_attitude: float = 1e-12
     process_noise_rate: float = 1e-16
     alpha: float = 1.0
@@ -442,11 +456,11 @@ class _Context:
             estimate_inertia=self.options.estimate_inertia,
         )
 
-    def windows(self, longest: float) -> tuple[float, ...]:
-        """Growing fit windows (s): 30 s, doubling, up to ``longest``."""
+    def windows(self, longest: float, growth: float = 2.0) -> tuple[float, ...]:
+        """Growing fit windows (s): 30 s, growing ``growth``-fold, up to ``longest``."""
         windows = [30.0] if longest > 30.0 else []
-        while windows and 2.0 * windows[-1] < longest:
-            windows.append(2.0 * windows[-1])  # grow at most twofold: LM stays in its basin
+        while windows and growth * windows[-1] < longest:
+            windows.append(growth * windows[-1])  # grow gently: LM stays in its basin
         return (*windows, longest)
 
 
@@ -463,8 +477,10 @@ def _search(
     search runs on longer windows (``pf_window_s``, see :class:`InversionOptions`)."""
     opt = ctx.options
     span = float(ctx.model.times[-1] - ctx.model.times[0])
-    windows = ctx.windows(
-        min(opt.pf_window_s, span) if for_pf else min(opt.init_window_s, 0.5 * span)
+    windows = (
+        ctx.windows(min(opt.pf_window_s, span), opt.pf_window_growth)
+        if for_pf
+        else ctx.windows(min(opt.init_window_s, 0.5 * span))
     )
     counts = opt.refine_keep or (PF_REFINE_KEEP if for_pf else FILTER_REFINE_KEEP)
     # First window: counts[0]; last: counts[-1]; windows between: the counts between.
@@ -491,6 +507,7 @@ def _search(
         windows=windows,
         keep=keep,
         max_epochs=ctx.options.max_epochs,
+        max_rotation=math.radians(ctx.options.max_sample_rotation_deg),
         tolerance=ctx.options.search_tolerance,
         twins=_twin_function(ctx, shapes, reciprocity=prior is None),
         groups=[ctx.symmetry(s) for s in shapes],

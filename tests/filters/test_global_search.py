@@ -193,6 +193,29 @@ def test_global_search_finds_the_attitude_and_the_shape_from_a_uniform_prior():
     assert np.all(np.diff(result.chi2) >= 0) and result.screened == 4000
 
 
+@pytest.mark.parametrize("max_rotation_deg, expected", [(20.0, 24), (math.inf, 10)])
+def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
+    max_rotation_deg, expected
+):
+    # 120 s at up to 4°/s with at most 20° between samples: ⌈120 · 4 / 20⌉ = 24 epochs,
+    # more than max_epochs = 10 (which alone would put 48° of rotation between samples).
+    problem = _problem(random_quaternion((), 3), np.radians([1.0, 0.5, -1.0]), seconds=120)
+    result = global_search(
+        problem,
+        n_candidates=64,
+        omega_max=math.radians(4.0),
+        seed=1,
+        screen_duration=16.0,
+        windows=(16.0, 120.0),
+        keep=(4, 2),
+        max_epochs=10,
+        max_rotation=math.radians(max_rotation_deg),
+        iterations=2,
+    )
+    assert len(result.epochs) == expected
+    assert result.epochs[0] == 0 and problem.times[result.epochs[-1]] == 118.0
+
+
 def test_backward_and_forward_trajectories_agree():
     q0 = random_quaternion((), 8)
     w0 = np.radians([3.0, 1.0, -2.0])
