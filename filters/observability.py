@@ -37,12 +37,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy import linalg
 from torch.func import jacfwd, jvp, vmap
 
 __all__ = [
     "Chart",
     "RankTest",
+    "canonical_basis",
     "fisher_information",
     "information_sigmas",
     "lie_derivatives",
@@ -190,23 +190,61 @@ class RankTest:
         Returns
         -------
         list of dict
-            One dict per unobservable direction. The basis is made as sparse as the null
-            space allows: pivoted QR picks one state per direction and the basis is
-            combined so each direction has a zero component on the other pivots (for a
-            null space spanned by coordinate axes this returns the axes themselves). Unit
-            norm, largest component positive.
+            One dict per unobservable direction, in canonical form: the rows of the reduced
+            row-echelon form of the null space's basis, so the result depends only on the
+            null space itself, not on the basis the SVD happened to return (which varies
+            with the BLAS kernels of the processor when singular values are degenerate).
+            Directions are ordered by their leading state (state order), each has unit
+            norm and a positive leading component; for a null space spanned by coordinate
+            axes they are those axes, in state order.
         """
-        null = self.null_space
-        if null.shape[1] == 0:
-            return []
-        _, _, pivots = linalg.qr(null.T, pivoting=True)
-        basis = null @ np.linalg.inv(null[pivots[: null.shape[1]], :])
         out = []
-        for v in basis.T:
-            v = v / np.linalg.norm(v)
-            v = v * np.sign(v[np.argmax(np.abs(v))])
+        for v in canonical_basis(self.null_space).T:
             out.append({n: float(c) for n, c in zip(names, v, strict=True) if abs(c) > threshold})
         return out
+
+
+def canonical_basis(basis: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """The canonical (reduced row-echelon) basis of the column space of ``basis``.
+
+    Gauss–Jordan elimination with partial pivoting on ``basisᵀ`` gives the reduced
+    row-echelon form, which is unique for a given subspace: pivots are taken in column
+    (state) order, each direction has zeros on the other directions' pivot states. Rows are
+    then scaled to unit norm with a positive pivot.
+
+    Parameters
+    ----------
+    basis : (p, k) array
+        Columns spanning the subspace (e.g. an orthonormal null-space basis).
+    tol : float
+        Components below ``tol`` times the largest are treated as zero when choosing pivots.
+
+    Returns
+    -------
+    (p, k) numpy.ndarray
+        The canonical basis, columns ordered by their pivot.
+    """
+    rows = np.array(np.asarray(basis, dtype=float).T)
+    k, p = rows.shape
+    if k == 0:
+        return rows.T
+    threshold = tol * np.max(np.abs(rows))
+    pivot_row = 0
+    for column in range(p):
+        if pivot_row == k:
+            break
+        candidate = pivot_row + int(np.argmax(np.abs(rows[pivot_row:, column])))
+        if abs(rows[candidate, column]) <= threshold:
+            rows[pivot_row:, column] = 0.0
+            continue
+        rows[[pivot_row, candidate]] = rows[[candidate, pivot_row]]
+        rows[pivot_row] /= rows[pivot_row, column]
+        others = np.arange(k) != pivot_row
+        rows[others] -= np.outer(rows[others, column], rows[pivot_row])
+        pivot_row += 1
+    rows = rows[:pivot_row]
+    rows /= np.linalg.norm(rows, axis=1, keepdims=True)
+    return rows.T
 
 
 def rank_test(

@@ -10,6 +10,7 @@ from filters.attitude import normalized_from_inertia, propagate
 from filters.monocular import FORMS, observability_at, trajectory_information
 from filters.observability import (
     Chart,
+    canonical_basis,
     fisher_information,
     information_sigmas,
     lie_derivatives,
@@ -37,7 +38,28 @@ def test_lie_derivatives_of_a_linear_system_are_c_a_powers():
     test = rank_test(q)
     assert test.rank == 2
     assert np.allclose(np.abs(test.null_space[:, 0]), [0, 0, 1])
-    assert test.unobservable_directions(["x1", "x2", "x3"]) == [{"x3": 1.0}]
+    (direction,) = test.unobservable_directions(["x1", "x2", "x3"])
+    assert list(direction) == ["x3"] and direction["x3"] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_canonical_basis_does_not_depend_on_the_basis_it_is_given():
+    """Any basis of one subspace (as different BLAS kernels return) gives one canonical form."""
+    rng = np.random.default_rng(7)
+    axes = np.eye(6)[:, [4, 1, 3]]  # coordinate axes, out of order
+    general = np.linalg.qr(rng.normal(size=(6, 3)))[0]
+    for subspace in (axes, general):
+        reference = canonical_basis(subspace)
+        for _ in range(20):
+            mixing = np.linalg.qr(rng.normal(size=(3, 3)))[0]  # rotation or reflection
+            assert np.allclose(canonical_basis(subspace @ mixing), reference, atol=1e-12)
+        # same span, unit columns, leading (pivot) components positive and in state order
+        assert np.linalg.matrix_rank(np.hstack([subspace, reference]), tol=1e-9) == 3
+        assert np.allclose(np.linalg.norm(reference, axis=0), 1.0)
+        leading = [int(np.flatnonzero(np.abs(c) > 1e-12)[0]) for c in reference.T]
+        assert leading == sorted(leading) and all(
+            reference[i, j] > 0 for j, i in enumerate(leading)
+        )
+    assert np.allclose(canonical_basis(axes), np.eye(6)[:, [1, 3, 4]])
 
 
 def test_a_chart_counts_the_rank_in_local_coordinates():
@@ -65,11 +87,9 @@ def test_scenario_b_loses_exactly_three_inertia_directions():
     test = observability_at(x, "L", max_order=5)
     assert test.rank == 8
     assert test.singular_values[8] < 1e-14 * test.singular_values[0]
-    assert test.unobservable_directions(FORMS["L"].state_names) == [
-        {"Lxx": 1.0},
-        {"Lyy": 1.0},
-        {"Lxz": 1.0},
-    ]
+    directions = test.unobservable_directions(FORMS["L"].state_names)
+    assert [list(d) for d in directions] == [["Lxx"], ["Lyy"], ["Lxz"]]
+    assert all(d[name] == pytest.approx(1.0, abs=1e-9) for d in directions for name in d)
 
 
 def test_unobservable_directions_are_exact_output_invariances():
