@@ -503,7 +503,8 @@ def _reference_candidates(
     # Accumulated variance in units of one link with `min_matches` points: the path to the
     # reference plus the new link, whose variance falls like 1/matches.
     score = links[solved] + min_matches / np.maximum(common, 1)
-    order = np.argsort(np.where(ok, score, np.inf))[:_MAX_TRIES]
+    # Stable: equal scores (same link count and matches) keep frame order on every CPU.
+    order = np.argsort(np.where(ok, score, np.inf), kind="stable")[:_MAX_TRIES]
     return [int(solved[i]) for i in order if ok[i]]
 
 

@@ -339,13 +339,15 @@ class SearchResult:
 
 
 def _best(cost: torch.Tensor, shape: torch.Tensor, count: int, per_shape: bool) -> torch.Tensor:
-    """Indices of the ``count`` lowest costs, overall or for every shape index."""
+    """Indices of the ``count`` lowest costs, overall or for every shape index; equal costs
+    keep candidate order (stable sorts here and below: an unstable sort leaves the order of
+    ties to the sorting kernel of the processor)."""
     if not per_shape:
-        return torch.argsort(cost)[:count]
+        return torch.argsort(cost, stable=True)[:count]
     picks = []
     for s in torch.unique(shape):
         rows = torch.nonzero(shape == s).flatten()
-        picks.append(rows[torch.argsort(cost[rows])[:count]])
+        picks.append(rows[torch.argsort(cost[rows], stable=True)[:count]])
     return torch.cat(picks)
 
 
@@ -725,7 +727,7 @@ def _best_distinct(
     63.6, ranked 25th and was lost; on the 240 s window that follows, the truth's fit is
     82.5 and the wrong one's 120.7. Keeping distinct states carries every minimum on.
     """
-    order = torch.argsort(cost).numpy()
+    order = torch.argsort(cost, stable=True).numpy()
     unique = order[
         distinct_states(
             q.detach().numpy()[order],
@@ -922,7 +924,7 @@ def global_search(
     )
     if k is not None:
         k = torch.cat([p[2] for p in found])
-    order = torch.argsort(chi2).numpy()
+    order = torch.argsort(chi2, stable=True).numpy()
     q_np = q.detach().numpy()[order]
     w_np = w.detach().numpy()[order]
     shape_np = shape.numpy()[order]

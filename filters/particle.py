@@ -604,7 +604,9 @@ class AttitudeParticleFilter:
         unassigned particle of its shape within
         ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every shape still
         without one gets one, and the rest join their nearest seed of the same shape (so the
-        cost stays ``O(max_clusters · N)``).
+        cost stays ``O(max_clusters · N)``). Among equally heavy particles (all of them after
+        a resampling) the first in particle order seeds: an unstable sort would leave that
+        choice, and with it the clusters, to the sorting kernel of the processor.
 
         Returns
         -------
@@ -615,7 +617,7 @@ class AttitudeParticleFilter:
         labels = torch.full((len(q),), -1, dtype=torch.long)
         seeds: list[int] = []
         cos_half = math.cos(0.5 * self.mode_angle)
-        order = torch.argsort(weights, descending=True)
+        order = torch.argsort(weights, descending=True, stable=True)
         while len(seeds) < self.max_clusters:
             free = order[labels[order] < 0]
             if len(free) == 0:

@@ -993,7 +993,7 @@ def _polish(ctx: _Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.nd
     )
     chi2 = (chi2 - (weak.residuals(q2, w2) ** 2).sum(dim=1)).numpy()
     q2 = quaternion_canonical(q2.numpy())
-    order = np.argsort(chi2)
+    order = np.argsort(chi2, kind="stable")
     kept = order[
         distinct_states(
             q2[order],
@@ -1020,7 +1020,7 @@ def _polish(ctx: _Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.nd
     weights /= weights.sum()
     moved = np.degrees(attitude_angle(q.numpy()[kept], q2[kept]))
     modes, covariances = [], []
-    for rank in np.argsort(-weights):
+    for rank in np.argsort(-weights, kind="stable"):
         i = kept[rank]
         if weights[rank] < ctx.options.min_mode_weight:
             continue

@@ -40,7 +40,7 @@ def solid_properties(triangles: np.ndarray, density: float = 1.0) -> MassPropert
     """Mass properties of the uniform solid bounded by a closed, outward-wound triangle mesh.
 
     Uses trimesh's divergence-theorem integrals (Eberly, "Polyhedral Mass Properties"), which
-    are exact for polyhedra.
+    are exact for polyhedra, taken about the mean vertex (see :func:`_reference_point`).
 
     Parameters
     ----------
@@ -49,10 +49,12 @@ def solid_properties(triangles: np.ndarray, density: float = 1.0) -> MassPropert
     density : float
         kg/m³.
     """
-    props = trimesh.triangles.mass_properties(np.asarray(triangles, float), density=density)
+    tri = np.asarray(triangles, float)
+    origin = _reference_point(tri)
+    props = trimesh.triangles.mass_properties(tri - origin, density=density)
     return MassProperties(
         mass=float(props.mass),
-        center_of_mass=np.asarray(props.center_mass, float),
+        center_of_mass=np.asarray(props.center_mass, float) + origin,
         inertia=np.asarray(props.inertia, float),
         measure=float(props.volume),
     )
@@ -72,6 +74,8 @@ def shell_properties(triangles: np.ndarray, areal_density: float = 1.0) -> MassP
         kg/m².
     """
     tri = np.asarray(triangles, float)
+    origin = _reference_point(tri)
+    tri = tri - origin
     areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     total_area = float(areas.sum())
     s = tri.sum(axis=1)
@@ -84,10 +88,22 @@ def shell_properties(triangles: np.ndarray, areal_density: float = 1.0) -> MassP
     central = 0.5 * (central + central.T)
     return MassProperties(
         mass=mass,
-        center_of_mass=com,
+        center_of_mass=com + origin,
         inertia=np.trace(central) * np.eye(3) - central,
         measure=total_area,
     )
+
+
+def _reference_point(triangles: np.ndarray) -> np.ndarray:
+    """Mean vertex of a triangle soup: the point the moments are integrated about.
+
+    About a distant origin the second moments are ``≈ m |d|²`` and the central inertia is
+    their small difference: the principal moments of a 2 m box 80 m from the origin came
+    out to 1e-9 only. About a point of the body the integrals keep full precision, and the
+    result no longer depends on where the model happens to sit.
+    """
+    points = triangles.reshape(-1, 3)
+    return points.mean(axis=0) if len(points) else np.zeros(3)
 
 
 def translate_inertia(inertia: np.ndarray, mass: float, offset: np.ndarray) -> np.ndarray:
@@ -112,21 +128,67 @@ def combine(parts: Sequence[MassProperties]) -> MassProperties:
     )
 
 
-def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def principal_axes(inertia: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
     """Principal moments (ascending) and axes of a symmetric inertia tensor.
+
+    The axes are canonical: they depend on the tensor only, not on the eigenvectors the
+    eigensolver happens to return (which, where moments are equal, change with the BLAS
+    kernels of the processor). Moments within ``rtol`` of the largest count as equal; any
+    basis of their common eigenspace is principal, and the one returned is the model axes
+    projected on that eigenspace and orthonormalised in order, so that model axes lying in it
+    are kept (a cube's or a sphere's principal axes are x, y, z; a cylinder's about z keeps x and
+    y). Each of the first two axes has its largest-magnitude component positive (the first
+    such component where several are equal within ``rtol``); the third completes a
+    right-handed frame.
+
+    Parameters
+    ----------
+    inertia : (3, 3) float
+        Symmetric inertia tensor, kg m².
+    rtol : float
+        Relative tolerance on moments (and component magnitudes) counted as equal.
 
     Returns
     -------
     moments : (3,) float
         kg m², ascending.
     axes : (3, 3) float
-        Columns are the principal axes in the model frame, right-handed (det = +1), each of
-        the first two with its largest-magnitude component positive, so that
+        Columns are the principal axes in the model frame, right-handed (det = +1), so that
         ``axes.T @ inertia @ axes = diag(moments)``.
     """
-    moments, axes = np.linalg.eigh(0.5 * (inertia + np.transpose(inertia)))
+    moments, vectors = np.linalg.eigh(0.5 * (inertia + np.transpose(inertia)))
+    axes = np.array(vectors)
+    scale = max(float(np.max(np.abs(moments))), np.finfo(float).tiny)
+    start = 0
+    for k in range(1, 4):
+        if k == 3 or moments[k] - moments[k - 1] > rtol * scale:
+            if k - start > 1:
+                axes[:, start:k] = _canonical_eigenbasis(vectors[:, start:k])
+            start = k
     for k in range(2):
-        if axes[np.argmax(np.abs(axes[:, k])), k] < 0:
+        magnitude = np.abs(axes[:, k])
+        lead = int(np.flatnonzero(magnitude >= (1.0 - rtol) * magnitude.max())[0])
+        if axes[lead, k] < 0:
             axes[:, k] = -axes[:, k]
     axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
     return moments, axes
+
+
+def _canonical_eigenbasis(basis: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Orthonormal basis of the column space of ``basis`` that depends on the space only.
+
+    The space's projector ``P = B Bᵀ`` (``B`` orthonormal) is unique; the model axes
+    ``P e_x, P e_y, P e_z`` are orthonormalised in that order (Gram–Schmidt), skipping any
+    that lie (within ``tol``) in the span of those before, until the space is spanned. Model
+    axes that lie in the space are therefore returned as they are.
+    """
+    projector = basis @ basis.T
+    out: list[np.ndarray] = []
+    for axis in projector.T:
+        v = axis - sum((u @ axis) * u for u in out) if out else axis
+        norm = np.linalg.norm(v)
+        if norm > tol:
+            out.append(v / norm)
+        if len(out) == basis.shape[1]:
+            break
+    return np.stack(out, axis=1)

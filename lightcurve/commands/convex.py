@@ -221,7 +221,9 @@ def _plot_fit(data, model: np.ndarray, path: Path, panels: int = 6) -> None:
     from lightcurve.atomic import atomic_path
 
     counts = np.bincount(data.curve, minlength=data.n_curves)
-    chosen = np.sort(np.argsort(counts)[::-1][:panels])
+    # The longest curves; ties by curve order (an unstable sort would leave the choice
+    # among equally long curves to the sorting kernel of the processor).
+    chosen = np.sort(np.argsort(-counts, kind="stable")[:panels])
     columns = min(3, len(chosen))
     rows = math.ceil(len(chosen) / columns)
     fig, axes = plt.subplots(rows, columns, figsize=(4 * columns, 2.8 * rows), squeeze=False)

@@ -40,8 +40,11 @@ def test_numpy_and_torch_agree_in_float64(parameter_sets, random_geometry):
         numpy_values = model(normal, light, view, tangent=tangent)
         torch_values = model(*map(as_tensor, (normal, light, view)), tangent=as_tensor(tangent))
         assert isinstance(torch_values, torch.Tensor) and torch_values.dtype == torch.float64
+        # numpy's and torch's exp/pow kernels (vectorised per CPU) differ in the last bits,
+        # which large arguments amplify (m = 0.05, exponents to 1000, the phase function's
+        # exp(−α/d)): up to 2.5e-13 relative measured.
         np.testing.assert_allclose(
-            torch_values.numpy(), numpy_values, rtol=1e-12, atol=1e-300, err_msg=name
+            torch_values.numpy(), numpy_values, rtol=1e-10, atol=1e-300, err_msg=name
         )
 
 

@@ -82,13 +82,15 @@ def test_potential_matches_term_by_term_legendre_sum(field):
 
 
 def test_degree_zero_is_the_point_mass():
+    # The recursion (complex products, divisions) and the closed form round differently:
+    # they agree to 3 ulps here, and vectorised complex arithmetic (FMA or not) moves that.
     points = outside_points(50, seed=3)
     rn = np.linalg.norm(points, axis=1, keepdims=True)
     for field in (EROS.truncated(0), SphericalHarmonicGravity.point_mass(EROS_MU, 1600.0)):
         np.testing.assert_allclose(
-            field.acceleration(points), -EROS_MU * points / rn**3, rtol=1e-15
+            field.acceleration(points), -EROS_MU * points / rn**3, rtol=1e-13
         )
-        np.testing.assert_allclose(field.potential(points), EROS_MU / rn[:, 0], rtol=1e-15)
+        np.testing.assert_allclose(field.potential(points), EROS_MU / rn[:, 0], rtol=1e-13)
 
 
 def test_torch_autograd_of_potential_equals_numpy_acceleration():

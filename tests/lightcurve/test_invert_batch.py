@@ -3,14 +3,16 @@
 Forty simulated inputs, one truncated, one with a NaN magnitude and one whose header names a
 shape the library does not have: 37 "ok" summaries and 3 "error" records with clear
 messages; a run killed with SIGKILL midway and rerun finishes with no partial files and no
-repeated work; the same batch on a real ``dask.distributed.LocalCluster`` gives identical
-summaries. The filters start at the simulation's initial state (``--init none``) so the 40
-inversions take seconds; the searches are tested in ``test_inversion.py``.
+repeated work; the same batch on a real ``dask.distributed.LocalCluster`` gives the same
+summaries (floating-point fields to rounding). The filters start at the simulation's
+initial state (``--init none``) so the 40 inversions take seconds; the searches are tested
+in ``test_inversion.py``.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -96,6 +98,22 @@ def summaries(out: Path) -> dict[str, dict]:
     return records
 
 
+def same_record(a: object, b: object) -> bool:
+    """Equal JSON records, floats to 1e-9 relative (1e-12 absolute) and the rest exactly.
+
+    The local run computes in the test process with its own thread count, the Dask workers
+    with one thread each; BLAS kernels and torch reductions do not promise the same last
+    digits for different thread counts.
+    """
+    if isinstance(a, float) and isinstance(b, float):
+        return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same_record(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(same_record(x, y) for x, y in zip(a, b, strict=True))
+    return type(a) is type(b) and a == b
+
+
 def check_complete(out: Path) -> None:
     """37 ok, the 3 bad inputs as errors with clear messages, no temporary files left."""
     records = summaries(out)
@@ -139,7 +157,7 @@ def test_killed_batch_resumes_without_repeating_work(inputs, tmp_path):
     assert redone <= set(BAD)  # only error records are retried; finished work is not redone
 
 
-def test_dask_cluster_gives_identical_summaries(inputs, tmp_path):
+def test_dask_cluster_gives_the_same_summaries(inputs, tmp_path):
     assert main(command(inputs, tmp_path / "local")) == 1
     check_complete(tmp_path / "local")
     with LocalCluster(
@@ -148,4 +166,7 @@ def test_dask_cluster_gives_identical_summaries(inputs, tmp_path):
         code = main(command(inputs, tmp_path / "dask", "--scheduler", cluster.scheduler_address))
     assert code == 1
     check_complete(tmp_path / "dask")
-    assert summaries(tmp_path / "dask") == summaries(tmp_path / "local")
+    local, dask = summaries(tmp_path / "local"), summaries(tmp_path / "dask")
+    assert local.keys() == dask.keys()
+    for stem in local:
+        assert same_record(dask[stem], local[stem]), (stem, dask[stem], local[stem])

@@ -128,6 +128,27 @@ def test_principal_frame_diagonalises_inertia(model):
     np.testing.assert_allclose(recorded, axes.T)
 
 
+def test_principal_axes_of_equal_moments_do_not_depend_on_the_eigensolver():
+    """Equal moments leave the eigenvectors to the eigensolver (and the processor's BLAS
+    kernels); the axes returned are canonical: rounding-level changes do not move them."""
+    rng = np.random.default_rng(12)
+    for moments in ([1.0, 1.0, 2.0], [2.0, 1.0, 1.0], [3.0, 3.0, 3.0]):
+        rotation = Rotation.from_rotvec(rng.normal(size=3)).as_matrix()
+        tensor = rotation @ np.diag(moments) @ rotation.T
+        reference = mass.principal_axes(tensor)[1]
+        np.testing.assert_allclose(
+            reference.T @ tensor @ reference, np.diag(sorted(moments)), atol=1e-12
+        )
+        for _ in range(20):
+            noise = 1e-16 * rng.normal(size=(3, 3))
+            axes = mass.principal_axes(tensor + noise + noise.T)[1]
+            np.testing.assert_allclose(axes, reference, atol=1e-9)
+    # Model axes in a degenerate eigenspace are kept: a cube's, a cylinder's (moments Jz < Jx = Jy).
+    np.testing.assert_allclose(primitives.box((1.0, 1.0, 1.0)).principal_axes, np.eye(3), atol=1e-9)
+    cylinder = primitives.cylinder(0.5, 2.0, sections=12).principal_axes
+    np.testing.assert_allclose(cylinder, np.eye(3)[:, [2, 0, 1]], atol=1e-9)
+
+
 def test_given_inertia_is_validated():
     box = primitives.box()
     with pytest.raises(shapes.ShapeError, match="triangle inequality"):
