@@ -89,6 +89,15 @@ def _node_grid(mjd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return nodes * NODE_SPACING_DAYS, np.searchsorted(nodes, index)
 
 
+def _tai_days(mjd: np.ndarray) -> np.ndarray:
+    """UTC MJDs → days of TAI since MJD 0."""
+    astropy_offline()
+    from astropy.time import Time
+
+    tai = Time(mjd, format="mjd", scale="utc").tai
+    return (tai.jd1 - 2_400_000.5) + tai.jd2
+
+
 def interpolate_at_nodes(
     mjd: np.ndarray, evaluate: Any, linear: Sequence[bool] | bool = False
 ) -> np.ndarray | tuple[np.ndarray, ...]:
@@ -97,7 +106,7 @@ def interpolate_at_nodes(
     Parameters
     ----------
     mjd : (n,) array
-        Epochs (MJD, any uniform time scale).
+        UTC epochs (MJD); the interpolation runs in TAI.
     evaluate : callable
         ``evaluate(node_mjd) -> array (m, ...)`` or a tuple of such arrays; called once,
         at the epochs themselves when they are fewer than the nodes.
@@ -118,15 +127,21 @@ def interpolate_at_nodes(
     single = not isinstance(values, tuple)
     values = (values,) if single else values
     linear = [linear] * len(values) if isinstance(linear, bool) else list(linear)
-    x = (mjd - node_mjd[at]) / NODE_SPACING_DAYS  # in [0, 1)
+    # Weights in TAI, uniform even across a leap second (a UTC day can last 86 401 s).
+    t, node_t = _tai_days(mjd), _tai_days(node_mjd)
+    times = {shift: node_t[at + shift] for shift in (-1, 0, 1, 2)}
+
+    def basis(shift: int, others: tuple[int, ...]) -> np.ndarray:
+        weight = np.ones_like(t)
+        for other in others:
+            weight *= (t - times[other]) / (times[shift] - times[other])
+        return weight
+
     cubic_weights = {
-        # Lagrange basis on the nodes −1, 0, 1, 2.
-        -1: -x * (x - 1.0) * (x - 2.0) / 6.0,
-        0: (x + 1.0) * (x - 1.0) * (x - 2.0) / 2.0,
-        1: -(x + 1.0) * x * (x - 2.0) / 2.0,
-        2: (x + 1.0) * x * (x - 1.0) / 6.0,
+        shift: basis(shift, tuple(o for o in (-1, 0, 1, 2) if o != shift))
+        for shift in (-1, 0, 1, 2)
     }
-    linear_weights = {0: 1.0 - x, 1: x}
+    linear_weights = {0: basis(0, (1,)), 1: basis(1, (0,))}
     out = []
     for value, is_linear in zip(values, linear, strict=True):
         total = np.zeros((mjd.size, *value.shape[1:]))

@@ -379,7 +379,8 @@ def select_object(tles: Sequence[TLE], norad: int | str | None = None) -> list[T
         if len(objects) != 1:
             listing = ", ".join(list(objects.values())[:10]) + (", …" if len(objects) > 10 else "")
             raise ValueError(
-                f"{prefix}{len(objects)} objects ({listing}): choose one by its NORAD number (--norad)"
+                f"{prefix}{len(objects)} objects ({listing}): choose one by its NORAD "
+                "number (--norad)"
             )
         norad = next(iter(objects))
     number = norad if isinstance(norad, int) else decode_norad(str(norad))
