@@ -40,10 +40,12 @@ from lightcurve.tle import TLE
 
 __all__ = [
     "DELIMITERS",
+    "MICROSECONDS_PER_DAY",
     "TIME_FORMATS",
     "TIME_SCALES",
     "RawTable",
     "TimeColumn",
+    "epoch_strings",
     "import_photometry",
     "parse_times",
     "read_epochs",
@@ -53,7 +55,7 @@ __all__ = [
 DELIMITERS = {"comma": ",", "semicolon": ";", "whitespace": None}
 TIME_FORMATS = ("iso", "jd", "mjd", "unix")
 TIME_SCALES = ("utc", "tt", "tdb")
-_MICROSECONDS_PER_DAY = 86_400_000_000
+MICROSECONDS_PER_DAY = 86_400_000_000
 _JD_MINUS_MJD = 2_400_000.5
 _UNIX_EPOCH_MJD = 40_587
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
@@ -231,6 +233,16 @@ def read_table(
 # --------------------------------------------------------------------------- values
 
 
+def epoch_strings(micro: np.ndarray) -> np.ndarray:
+    """ISO-8601 UTC strings (``…T…Z``, microseconds) of UTC microseconds since MJD 0.
+
+    Written with the ``mjd`` column, they keep every microsecond exactly (an MJD in float64
+    resolves 0.6 µs only).
+    """
+    stamps = MJD_EPOCH + pd.to_timedelta(np.asarray(micro, dtype=np.int64), "us")
+    return np.asarray(stamps.strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
+
+
 class _Problems:
     """Collects bad cells: raises on the first one, or records them all for dropping."""
 
@@ -325,9 +337,9 @@ def parse_times(
         if table.decimal != ".":
             cells = [c.replace(table.decimal, ".") for c in cells]
         unit, offset = {
-            "jd": (_MICROSECONDS_PER_DAY, -int(_JD_MINUS_MJD * 2) * (_MICROSECONDS_PER_DAY // 2)),
-            "mjd": (_MICROSECONDS_PER_DAY, 0),
-            "unix": (1_000_000, _UNIX_EPOCH_MJD * _MICROSECONDS_PER_DAY),
+            "jd": (MICROSECONDS_PER_DAY, -int(_JD_MINUS_MJD * 2) * (MICROSECONDS_PER_DAY // 2)),
+            "mjd": (MICROSECONDS_PER_DAY, 0),
+            "unix": (1_000_000, _UNIX_EPOCH_MJD * MICROSECONDS_PER_DAY),
         }[time.format]
         micro = np.array([_decimal_microseconds(c, unit, offset) for c in cells])
         what = {"jd": "a Julian date", "mjd": "a Modified Julian Date", "unix": "Unix seconds"}[
@@ -351,11 +363,11 @@ def _to_utc(micro: np.ndarray, scale: str) -> np.ndarray:
     out = np.full_like(micro, np.nan)
     ok = np.isfinite(micro)
     if ok.any():
-        days = np.floor(micro[ok] / _MICROSECONDS_PER_DAY)
-        rest = (micro[ok] - days * _MICROSECONDS_PER_DAY) / _MICROSECONDS_PER_DAY
+        days = np.floor(micro[ok] / MICROSECONDS_PER_DAY)
+        rest = (micro[ok] - days * MICROSECONDS_PER_DAY) / MICROSECONDS_PER_DAY
         utc = Time(days + _JD_MINUS_MJD, rest, format="jd", scale=scale).utc
         out[ok] = np.round(
-            (utc.jd1 - _JD_MINUS_MJD) * _MICROSECONDS_PER_DAY + utc.jd2 * _MICROSECONDS_PER_DAY
+            (utc.jd1 - _JD_MINUS_MJD) * MICROSECONDS_PER_DAY + utc.jd2 * MICROSECONDS_PER_DAY
         )
     return out
 
@@ -505,7 +517,7 @@ def import_photometry(
     rows = np.flatnonzero(~problems.bad)
     if rows.size == 0:
         raise ObservationError("no valid rows", table.source)
-    mjd = micro[rows] / _MICROSECONDS_PER_DAY
+    mjd = micro[rows] / MICROSECONDS_PER_DAY
     if tles is not None:
         geometry = satellite_geometry.from_tle(tles, site, mjd, max_tle_age_days, shadow_model)
         elevation = geometry.horizontal[0]
@@ -536,8 +548,9 @@ def import_photometry(
         )
         geometry = build(site, mjd, first[rows], second[rows], distance[rows], shadow_model)
     frame = geometry.table()
-    frame.insert(1, "mag", mag[rows])
-    frame.insert(2, "mag_err", err[rows])
+    frame.insert(0, "epoch", epoch_strings(micro[rows]))
+    frame.insert(2, "mag", mag[rows])
+    frame.insert(3, "mag_err", err[rows])
     meta: dict[str, str] = {}
     meta.update(table.meta)
     meta.update(
@@ -604,15 +617,16 @@ def read_epochs(path: str | Path) -> tuple[pd.DataFrame, dict[str, str], np.ndar
         The other columns (numeric where every value is).
     meta : dict
         The file's metadata.
-    mjd : (n,) numpy.ndarray
-        UTC MJDs.
+    micro : (n,) numpy.ndarray
+        UTC microseconds since MJD 0 (float64 holding integers).
     """
     from lightcurve import io
 
     if Path(path).suffix.lower() in (".parquet", ".pq"):
         observations = io.read(path, require_magnitudes=False)
         columns = observations.table.drop(columns=["epoch", "mjd"])
-        return columns, dict(observations.meta), observations.mjd
+        micro = (observations.epochs - MJD_EPOCH).to_numpy(dtype="timedelta64[us]").astype(float)
+        return columns, dict(observations.meta), micro
     table = read_table(path)
     problems = _Problems(table, drop=False)
     if "mjd" in table.columns:
@@ -628,4 +642,4 @@ def read_epochs(path: str | Path) -> tuple[pd.DataFrame, dict[str, str], np.ndar
         numeric = pd.to_numeric(columns[name], errors="coerce")
         if numeric.notna().all():
             columns[name] = numeric
-    return columns, table.meta, micro / _MICROSECONDS_PER_DAY
+    return columns, table.meta, micro

@@ -8,9 +8,10 @@ data). Epochs span --start/--duration/--cadence, or (with --tle) are those of an
 observation or photometry file (--epochs-from FILE, whose other columns are kept). Over a
 span only epochs with the object above --min-elevation and the site in darkness (Sun below
 --max-sun-elevation) are kept, and epochs in the Earth's umbra are dropped (--umbra flag
-keeps them). The file has the observation-file columns without mag/mag_err (GCRS vectors,
-km; UTC epochs) and, for TLEs, the shadow state, sunlit fraction, phase angle, range,
-elevation, azimuth and airmass; it can be passed to `lightcurve simulate`.
+keeps them; with --epochs-from they are kept unless --umbra drop). The file has the
+observation-file columns without mag/mag_err (GCRS vectors, km; UTC epochs) and, for TLEs,
+the shadow state, sunlit fraction, phase angle, range, elevation, azimuth and airmass; it
+can be passed to `lightcurve simulate`.
 """
 
 from __future__ import annotations
@@ -25,11 +26,12 @@ import pandas as pd
 
 from lightcurve import io
 from lightcurve.ephemeris import CircularOrbit, orbit_geometry
+from lightcurve.importing import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
 from lightcurve.observations import (
+    MJD_EPOCH,
     OBSERVER_COLUMNS,
     SUN_COLUMNS,
     Observations,
-    datetime_to_mjd,
     mjd_to_datetime,
 )
 from lightcurve.shadow_earth import MODELS
@@ -88,9 +90,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--umbra",
         choices=("drop", "flag"),
-        default="drop",
         help="epochs with the object in the Earth's umbra: drop them, or keep them flagged "
-        "in the 'shadow' column (TLEs; default drop)",
+        "in the 'shadow' column (TLEs; default drop over a span, flag with --epochs-from)",
     )
     parser.add_argument(
         "--shadow-model",
@@ -103,21 +104,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _span(args: argparse.Namespace) -> np.ndarray:
+    """UTC microseconds since MJD 0 of the epochs of --start/--duration/--cadence."""
     if args.start is None or args.duration is None:
         raise ValueError("give --start and --duration (or --epochs-from with --tle)")
     if not (args.duration > 0 and args.cadence > 0):
         raise ValueError("--duration and --cadence must be positive seconds")
     try:
-        start = datetime_to_mjd(pd.DatetimeIndex([pd.Timestamp(args.start, tz="UTC")]))[0]
+        start = pd.Timestamp(args.start, tz="UTC")
     except ValueError as exc:
         raise ValueError(f"--start: cannot parse {args.start!r} as ISO-8601 ({exc})") from None
-    return start + np.arange(0.0, args.duration, args.cadence) / 86400.0
+    start_us = (start - MJD_EPOCH) // pd.Timedelta(microseconds=1)
+    steps = np.arange(0.0, args.duration, args.cadence)
+    return start_us + np.round(steps * 1e6)
 
 
 def _circular(args: argparse.Namespace) -> int:
     if args.epochs_from:
         raise ValueError("--epochs-from needs --tle")
-    mjd = _span(args)
+    mjd = _span(args) / MICROSECONDS_PER_DAY
     site = get_site(args.site)
     if args.geo is not None:
         orbit = CircularOrbit.geostationary(args.geo, mjd[0])
@@ -137,7 +141,6 @@ def _default(value: float | None, key: str) -> float:
 
 
 def _tle(args: argparse.Namespace) -> int:
-    from lightcurve.importing import read_epochs
     from lightcurve.observations import validate_table
     from lightcurve.satellite_geometry import GEOMETRY_COLUMNS, from_tle
     from lightcurve.shadow_earth import shadow_events
@@ -148,7 +151,7 @@ def _tle(args: argparse.Namespace) -> int:
     if args.epochs_from:
         if args.start is not None or args.duration is not None:
             raise ValueError("give either --epochs-from or --start/--duration")
-        carried, meta, mjd = read_epochs(args.epochs_from)
+        carried, meta, micro = read_epochs(args.epochs_from)
         carried = carried.drop(
             columns=[
                 c
@@ -157,10 +160,13 @@ def _tle(args: argparse.Namespace) -> int:
             ]
         )
         min_elevation, max_sun = args.min_elevation, args.max_sun_elevation
+        umbra = args.umbra or "flag"
     else:
-        carried, meta, mjd = None, {}, _span(args)
+        carried, meta, micro = None, {}, _span(args)
         min_elevation = _default(args.min_elevation, "min_elevation")
         max_sun = _default(args.max_sun_elevation, "max_sun_elevation")
+        umbra = args.umbra or "drop"
+    mjd = micro / MICROSECONDS_PER_DAY
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         geometry = from_tle(tles, site, mjd, args.max_tle_age, args.shadow_model)
@@ -185,7 +191,7 @@ def _tle(args: argparse.Namespace) -> int:
         counts[f"with the Sun above {max_sun:g} deg"] = ~dark & keep
         keep &= dark
     shadow = geometry.shadow
-    if args.umbra == "drop":
+    if umbra == "drop":
         counts["in the umbra"] = shadow.in_umbra & keep
         keep &= ~shadow.in_umbra
     if not keep.any():
@@ -195,6 +201,7 @@ def _tle(args: argparse.Namespace) -> int:
     events = shadow_events(geometry.mjd, geometry.object_gcrs, geometry.sun_gcrs, args.shadow_model)
     geometry = geometry.subset(keep)
     table = geometry.table()
+    table.insert(0, "epoch", epoch_strings(micro[keep]))
     if carried is not None:
         table = pd.concat([table, carried.loc[keep].reset_index(drop=True)], axis=1)
     name = args.name or meta.get("object") or tles[0].name or f"NORAD {tles[0].norad}"
