@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightcurve.satellite_geometry import from_tle
 from lightcurve.sites import get_site
 from lightcurve.tle import (
     SGP4Error,
@@ -21,6 +20,7 @@ from lightcurve.tle import (
     read_tles,
     select_object,
 )
+from lightcurve.tle_reference import compare_topocentric, skyfield_timescale
 
 CATALOGUE = Path(__file__).resolve().parents[2] / "data" / "tle" / "catalogue.tle"
 ISS_LINES = (
@@ -155,25 +155,6 @@ def test_sgp4_verification_set_propagates_or_reports_its_error_code():
     assert codes == [1, 1, 6, 6, 4, 3, 6]
 
 
-def _skyfield_timescale():
-    """skyfield's built-in timescale (no download), with the IERS pole coordinates that
-    astropy bundles: polar motion moves a GEO satellite by up to 60 m in the ITRS, and the
-    builtin timescale has none."""
-    from astropy.time import Time
-    from astropy.utils import iers
-    from skyfield.api import load
-
-    ts = load.timescale(builtin=True)
-    table = iers.earth_orientation_table.get()
-    mjd = np.asarray(table["MJD"].value, dtype=float)
-    x = np.asarray(table["PM_x"].value, dtype=float)
-    y = np.asarray(table["PM_y"].value, dtype=float)
-    known = np.isfinite(x) & np.isfinite(y)
-    tt = Time(mjd[known], format="mjd", scale="utc").tt.jd
-    ts.polar_motion_table = (tt, x[known], y[known])
-    return ts
-
-
 #: LEO, MEO (GPS, O3b, BeiDou-like), GEO, Molniya and HEO element sets of the catalogue.
 ACCEPTANCE_OBJECTS = {
     25544: "LEO",
@@ -192,11 +173,9 @@ ACCEPTANCE_OBJECTS = {
 
 def test_topocentric_geometry_matches_skyfield():
     """≤ 1″ in direction and ≤ 1 m in range: 11 objects × 1000 random epochs within two days
-    of their TLE epochs (11 000 epochs) × 3 sites."""
-    from skyfield.api import EarthSatellite, wgs84
-    from skyfield.framelib import itrs
-
-    ts = _skyfield_timescale()
+    of their TLE epochs (11 000 epochs) × 3 sites (``benchmarks/tle_geometry.py``: 10⁴
+    epochs per object)."""
+    ts = skyfield_timescale()
     catalogue = read_tles(CATALOGUE)
     sites = [get_site(name) for name in ("Kislovodsk", "Siding Spring", "Haleakala")]
     rng = np.random.default_rng(2024)
@@ -204,18 +183,9 @@ def test_topocentric_geometry_matches_skyfield():
     for norad in ACCEPTANCE_OBJECTS:
         tle = select_object(catalogue, norad)[-1]
         mjd = tle.epoch_mjd + rng.uniform(-2.0, 2.0, 1000)
-        whole = np.floor(mjd)
-        t = ts.utc(1858, 11, 17 + whole, 0, 0, (mjd - whole) * 86400.0)
-        satellite = EarthSatellite(tle.line1, tle.line2, ts=ts)
-        for site in sites:
-            ours = from_tle([tle], site, mjd, max_age_days=None).topocentric_itrs
-            topos = wgs84.latlon(site.latitude_deg, site.longitude_deg, site.altitude_m)
-            theirs = (satellite - topos).at(t).frame_xyz(itrs).km.T
-            cross = np.linalg.norm(np.cross(ours, theirs), axis=1)
-            angle = np.degrees(np.arctan2(cross, np.sum(ours * theirs, axis=1))) * 3600
-            distance = np.abs(np.linalg.norm(ours, axis=1) - np.linalg.norm(theirs, axis=1))
-            worst_angle = max(worst_angle, float(angle.max()))
-            worst_range = max(worst_range, float(distance.max()) * 1000.0)
+        angle, distance = compare_topocentric(tle, sites, mjd, ts)
+        worst_angle = max(worst_angle, float(angle.max()))
+        worst_range = max(worst_range, float(distance.max()))
     assert set(ACCEPTANCE_OBJECTS.values()) >= {"LEO", "MEO", "GEO", "Molniya"}
     assert worst_angle <= 1.0, worst_angle
     assert worst_range <= 1.0, worst_range
