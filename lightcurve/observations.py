@@ -60,6 +60,7 @@ GEOMETRY_NUMERIC = (
     "airmass",
     "tle_age_days",
 )
+GEOMETRY_COLUMNS = ("shadow", *GEOMETRY_NUMERIC)
 OPTIONAL_NUMERIC = ("exposure_s", "lightcurve_id", *TRUTH_COLUMNS, *GEOMETRY_NUMERIC)
 KNOWN_COLUMNS = (
     "epoch",
@@ -72,8 +73,7 @@ KNOWN_COLUMNS = (
     "lightcurve_id",
     "relative",
     *TRUTH_COLUMNS,
-    "shadow",
-    *GEOMETRY_NUMERIC,
+    *GEOMETRY_COLUMNS,
 )
 
 # Plausible ranges (km) used to catch vectors given in the wrong unit.

@@ -34,23 +34,11 @@ from lightcurve.tle import DEFAULT_MAX_AGE_DAYS, TLE, propagate_teme
 from lightcurve.topocentric import airmass, horizontal_from_itrs, itrs_from_horizontal
 
 __all__ = [
-    "GEOMETRY_COLUMNS",
     "SatelliteGeometry",
     "from_horizontal",
     "from_radec",
     "from_tle",
 ]
-
-#: Columns written alongside the vectors.
-GEOMETRY_COLUMNS = (
-    "shadow",
-    "sunlit_fraction",
-    "phase_angle_deg",
-    "range_km",
-    "elevation_deg",
-    "azimuth_deg",
-    "airmass",
-)
 
 
 def _apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:

@@ -17,26 +17,29 @@ can be passed to `lightcurve simulate`.
 from __future__ import annotations
 
 import argparse
-import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from lightcurve import io
+from lightcurve.commands._satellite_args import (
+    add_shadow_options,
+    add_site,
+    add_tle_options,
+    warnings_to_stderr,
+)
 from lightcurve.ephemeris import CircularOrbit, orbit_geometry
 from lightcurve.importing import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
 from lightcurve.observations import (
+    GEOMETRY_COLUMNS,
     MJD_EPOCH,
     OBSERVER_COLUMNS,
     SUN_COLUMNS,
     Observations,
     mjd_to_datetime,
 )
-from lightcurve.shadow_earth import MODELS
 from lightcurve.sites import get_site
-from lightcurve.tle import DEFAULT_MAX_AGE_DAYS
 
 NAME = "geometry"
 HELP = "write a geometry file (circular orbit or TLEs + ground site) for simulate"
@@ -59,24 +62,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     orbit.add_argument("--geo", type=float, metavar="LONGITUDE", help="geostationary, deg east")
     orbit.add_argument("--radius", type=float, help="circular orbit radius, km")
     orbit.add_argument("--tle", metavar="FILE", help="TLE file (two- or three-line records)")
-    parser.add_argument("--norad", help="catalogue number of the object in the TLE file")
-    parser.add_argument(
-        "--max-tle-age",
-        type=float,
-        default=DEFAULT_MAX_AGE_DAYS,
-        metavar="DAYS",
-        help=f"warn for epochs farther than this from their TLE's epoch "
-        f"(default {DEFAULT_MAX_AGE_DAYS:g})",
-    )
+    add_tle_options(parser)
     parser.add_argument("--inclination", type=float, default=0.0, help="deg")
     parser.add_argument("--raan", type=float, default=0.0, help="deg")
     parser.add_argument("--arg-latitude", type=float, default=0.0, help="deg at --start")
-    parser.add_argument(
-        "--site",
-        default="Mount Lemmon",
-        metavar="NAME|LAT,LON,ALT_M",
-        help="observatory name (data/sites) or geodetic deg,deg,m (default Mount Lemmon)",
-    )
+    add_site(parser, default="Mount Lemmon")
     parser.add_argument(
         "--min-elevation",
         type=float,
@@ -87,18 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         help="deg (default -12 over a span; none with --epochs-from)",
     )
-    parser.add_argument(
-        "--umbra",
-        choices=("drop", "flag"),
-        help="epochs with the object in the Earth's umbra: drop them, or keep them flagged "
-        "in the 'shadow' column (TLEs; default drop over a span, flag with --epochs-from)",
-    )
-    parser.add_argument(
-        "--shadow-model",
-        choices=MODELS,
-        default="conical",
-        help="Earth-shadow model for TLEs (default conical, with penumbra)",
-    )
+    add_shadow_options(parser, None, "TLEs; default drop over a span, flag with --epochs-from")
     parser.add_argument("--name", help="object name for the header (default: from the TLE)")
     parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
 
@@ -142,7 +121,7 @@ def _default(value: float | None, key: str) -> float:
 
 def _tle(args: argparse.Namespace) -> int:
     from lightcurve.observations import validate_table
-    from lightcurve.satellite_geometry import GEOMETRY_COLUMNS, from_tle
+    from lightcurve.satellite_geometry import from_tle
     from lightcurve.shadow_earth import shadow_events
     from lightcurve.tle import read_tles, select_object
 
@@ -154,9 +133,7 @@ def _tle(args: argparse.Namespace) -> int:
         carried, meta, micro = read_epochs(args.epochs_from)
         carried = carried.drop(
             columns=[
-                c
-                for c in (*SUN_COLUMNS, *OBSERVER_COLUMNS, *GEOMETRY_COLUMNS, "tle_age_days")
-                if c in carried
+                c for c in (*SUN_COLUMNS, *OBSERVER_COLUMNS, *GEOMETRY_COLUMNS) if c in carried
             ]
         )
         min_elevation, max_sun = args.min_elevation, args.max_sun_elevation
@@ -167,11 +144,8 @@ def _tle(args: argparse.Namespace) -> int:
         max_sun = _default(args.max_sun_elevation, "max_sun_elevation")
         umbra = args.umbra or "drop"
     mjd = micro / MICROSECONDS_PER_DAY
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_to_stderr(NAME):
         geometry = from_tle(tles, site, mjd, args.max_tle_age, args.shadow_model)
-    for warning in caught:
-        print(f"lightcurve geometry: warning: {warning.message}", file=sys.stderr)
     elevation = geometry.horizontal[0]
     keep = np.ones(len(mjd), dtype=bool)
     counts = {}

@@ -17,10 +17,14 @@ azimuth and airmass alongside.
 from __future__ import annotations
 
 import argparse
-import sys
-import warnings
 
 from lightcurve import io
+from lightcurve.commands._satellite_args import (
+    add_shadow_options,
+    add_site,
+    add_tle_options,
+    warnings_to_stderr,
+)
 from lightcurve.importing import (
     DELIMITERS,
     TIME_FORMATS,
@@ -30,9 +34,7 @@ from lightcurve.importing import (
     import_photometry,
     read_table,
 )
-from lightcurve.shadow_earth import MODELS
 from lightcurve.sites import get_site
-from lightcurve.tle import DEFAULT_MAX_AGE_DAYS
 
 NAME = "import"
 HELP = "import a photometry table (times, magnitudes, TLEs or topocentric data) as observations"
@@ -71,15 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="RA,DEC,R",
         help="topocentric right ascension, declination (deg, GCRS/J2000 axes), range (km)",
     )
-    parser.add_argument("--norad", help="catalogue number of the object in the TLE file")
-    parser.add_argument(
-        "--max-tle-age",
-        type=float,
-        default=DEFAULT_MAX_AGE_DAYS,
-        metavar="DAYS",
-        help=f"warn for rows farther than this from their TLE's epoch "
-        f"(default {DEFAULT_MAX_AGE_DAYS:g})",
-    )
+    add_tle_options(parser)
     parser.add_argument(
         "--range-kind",
         choices=("slant", "height"),
@@ -87,12 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the R column of --alt-az-range-columns: the distance from the site (slant, "
         "default) or the height above the WGS84 ellipsoid (height), km",
     )
-    parser.add_argument(
-        "--site",
-        required=True,
-        metavar="NAME|LAT,LON,ALT_M",
-        help="observatory name (data/sites) or geodetic deg,deg,m",
-    )
+    add_site(parser)
     parser.add_argument(
         "--delimiter", choices=("auto", *DELIMITERS), default="auto", help="default auto"
     )
@@ -105,14 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the first row is (not) a header (default: detected)",
     )
     parser.add_argument("--decimal", choices=(".", ","), default=".", help="decimal mark")
-    parser.add_argument(
-        "--umbra",
-        choices=("flag", "drop"),
-        default="flag",
-        help="rows with the object in the Earth's umbra: keep them flagged in the 'shadow' "
-        "column (default) or drop them",
-    )
-    parser.add_argument("--shadow-model", choices=MODELS, default="conical")
+    add_shadow_options(parser, "flag", "default flag")
     parser.add_argument(
         "--drop-bad-rows", action="store_true", help="drop rows with bad values and list them"
     )
@@ -140,8 +122,7 @@ def run(args: argparse.Namespace) -> int:
             topocentric = Topocentric("alt-az", args.alt_az_range_columns, args.range_kind)
         else:
             topocentric = Topocentric("ra-dec", args.ra_dec_range_columns, args.range_kind)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_to_stderr(NAME):
         observations = import_photometry(
             table,
             args.time_column,
@@ -159,8 +140,6 @@ def run(args: argparse.Namespace) -> int:
             allow_duplicate_epochs=args.allow_duplicate_epochs,
             name=args.name,
         )
-    for warning in caught:
-        print(f"lightcurve import: warning: {warning.message}", file=sys.stderr)
     io.write(observations, args.out)
     states = observations.table["shadow"].value_counts()
     shadowed = ", ".join(

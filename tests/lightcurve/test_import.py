@@ -253,26 +253,13 @@ def test_topocentric_routes_reproduce_the_tle_geometry(tmp_path, good_table):
     frame.loc[4, "el"] = "-2.0"
     frame.loc[6, "r"] = "-5"
     frame.to_csv(path, index=False)
-    with pytest.raises(ObservationError, match=r"row 5, column 'el': elevation -2 deg"):
-        import_photometry(
-            read_table(path),
-            "t",
-            TimeColumn("iso"),
-            "m",
-            site,
-            mag_err=0.05,
-            topocentric=Topocentric("alt-az", ("el", "az", "r")),
-        )
-    with pytest.raises(ObservationError, match=r"row 7, column 'r': slant -5 km must be > 0"):
-        import_photometry(
-            read_table(path),
-            "t",
-            TimeColumn("iso"),
-            "m",
-            site,
-            mag_err=0.05,
-            topocentric=Topocentric("ra-dec", ("ra", "dec", "r")),
-        )
+    common = (read_table(path), *common[1:])
+    for kind, columns, message in (
+        ("alt-az", ("el", "az", "r"), r"row 5, column 'el': elevation -2 deg"),
+        ("ra-dec", ("ra", "dec", "r"), r"row 7, column 'r': slant -5 km must be > 0"),
+    ):
+        with pytest.raises(ObservationError, match=message):
+            import_photometry(*common, mag_err=0.05, topocentric=Topocentric(kind, columns))
 
 
 def test_pomenis_table_through_import_gives_the_starlink_prediction(tmp_path, capsys):
