@@ -337,7 +337,7 @@ def parse_times(
         if table.decimal != ".":
             cells = [c.replace(table.decimal, ".") for c in cells]
         unit, offset = {
-            "jd": (MICROSECONDS_PER_DAY, -int(_JD_MINUS_MJD * 2) * (MICROSECONDS_PER_DAY // 2)),
+            "jd": (MICROSECONDS_PER_DAY, -4_800_001 * (MICROSECONDS_PER_DAY // 2)),  # JD − MJD
             "mjd": (MICROSECONDS_PER_DAY, 0),
             "unix": (1_000_000, _UNIX_EPOCH_MJD * MICROSECONDS_PER_DAY),
         }[time.format]
@@ -608,8 +608,8 @@ def read_epochs(path: str | Path) -> tuple[pd.DataFrame, dict[str, str], np.ndar
     Parameters
     ----------
     path : path-like
-        Parquet observation file, or a text table (:func:`read_table`) with an ``mjd``
-        (UTC) or ``epoch`` (ISO-8601, UTC unless it states an offset) column.
+        A text table (:func:`read_table`) or a Parquet file with an ``epoch`` (ISO-8601,
+        UTC unless it states an offset; preferred) or ``mjd`` (UTC) column.
 
     Returns
     -------
@@ -620,19 +620,15 @@ def read_epochs(path: str | Path) -> tuple[pd.DataFrame, dict[str, str], np.ndar
     micro : (n,) numpy.ndarray
         UTC microseconds since MJD 0 (float64 holding integers).
     """
-    from lightcurve import io
-
-    if Path(path).suffix.lower() in (".parquet", ".pq"):
-        observations = io.read(path, require_magnitudes=False)
-        columns = observations.table.drop(columns=["epoch", "mjd"])
-        micro = (observations.epochs - MJD_EPOCH).to_numpy(dtype="timedelta64[us]").astype(float)
-        return columns, dict(observations.meta), micro
-    table = read_table(path)
+    path = Path(path)
+    parquet = path.suffix.lower() in (".parquet", ".pq")
+    table = _parquet_table(path) if parquet else read_table(path)
     problems = _Problems(table, drop=False)
-    if "mjd" in table.columns:
-        _, micro = parse_times(table, "mjd", TimeColumn("mjd"), problems)
-    elif "epoch" in table.columns:
+    # The ISO epoch is exact to the microsecond; an MJD in float64 resolves 0.6 µs.
+    if "epoch" in table.columns:
         _, micro = parse_times(table, "epoch", TimeColumn("iso"), problems)
+    elif "mjd" in table.columns:
+        _, micro = parse_times(table, "mjd", TimeColumn("mjd"), problems)
     else:
         raise ObservationError("no 'epoch' (ISO-8601 UTC) or 'mjd' (UTC) column", str(path))
     columns = pd.DataFrame(table.rows, columns=table.columns).drop(
@@ -643,3 +639,29 @@ def read_epochs(path: str | Path) -> tuple[pd.DataFrame, dict[str, str], np.ndar
         if numeric.notna().all():
             columns[name] = numeric
     return columns, table.meta, micro
+
+
+def _parquet_table(path: Path) -> RawTable:
+    """A Parquet file as a :class:`RawTable` of strings (floats written exactly, ``repr``)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    try:
+        arrow = pq.read_table(path)
+    except (OSError, ValueError) as exc:
+        raise ObservationError(f"cannot read Parquet file ({exc})", str(path)) from None
+    raw_meta = (arrow.schema.metadata or {}).get(b"lightcurve.meta")
+    frame = arrow.to_pandas()
+    rows = [[_cell(value) for value in row] for row in frame.itertuples(index=False)]
+    lines = list(range(1, len(rows) + 1))
+    meta = json.loads(raw_meta) if raw_meta else {}
+    return RawTable([str(c) for c in frame.columns], rows, lines, meta, str(path))
+
+
+def _cell(value: object) -> str:
+    if isinstance(value, pd.Timestamp):
+        return value.isoformat()
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return ""
+    return repr(value) if isinstance(value, float) else str(value)

@@ -19,6 +19,7 @@ import numpy as np
 from lightcurve.ephemeris import Site
 from lightcurve.frames import astropy_offline
 from lightcurve.satellite_geometry import from_tle
+from lightcurve.sites import site_itrs
 from lightcurve.tle import TLE
 
 __all__ = ["compare_topocentric", "skyfield_timescale"]
@@ -69,9 +70,12 @@ def compare_topocentric(
     whole = np.floor(mjd)
     t = ts.utc(1858, 11, 17 + whole, 0, 0, (mjd - whole) * 86400.0)
     satellite = EarthSatellite(tle.line1, tle.line2, ts=ts)
+    # The object's ITRS position does not depend on the site: compute it once.
+    first = from_tle([tle], sites[0], mjd, max_age_days=None)
+    object_itrs = first.topocentric_itrs + site_itrs(sites[0])
     angles, ranges = [], []
     for site in sites:
-        ours = from_tle([tle], site, mjd, max_age_days=None).topocentric_itrs
+        ours = object_itrs - site_itrs(site)
         topos = wgs84.latlon(site.latitude_deg, site.longitude_deg, site.altitude_m)
         theirs = (satellite - topos).at(t).frame_xyz(itrs).km.T
         cross = np.linalg.norm(np.cross(ours, theirs), axis=1)
