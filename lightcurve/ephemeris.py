@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from lightcurve.frames import astropy_offline, frame_rotations, interpolate_at_nodes
 from lightcurve.observations import Observations, validate_table
+from lightcurve.shadow_earth import earth_shadow
 
 __all__ = ["CircularOrbit", "Site", "orbit_geometry", "site_position", "sun_position"]
 
@@ -24,11 +26,7 @@ EARTH_RADIUS_KM = 6378.137
 
 
 def _astropy():
-    from astropy.utils import iers
-
-    iers.conf.auto_download = False
-    iers.conf.auto_max_age = None
-    import astropy.units as u
+    u = astropy_offline()
     from astropy.coordinates import EarthLocation, get_body
     from astropy.time import Time
 
@@ -37,6 +35,11 @@ def _astropy():
 
 def sun_position(mjd: np.ndarray) -> np.ndarray:
     """Geocentric GCRS position of the Sun (km).
+
+    astropy's built-in ephemeris (``get_body("sun")``: astrometric, light time included).
+    For many epochs it is evaluated on the six-hour node grid of :mod:`lightcurve.frames`
+    and interpolated (cubic Lagrange, four nodes): the error is below 10 m, 10⁻¹⁰ of the
+    distance (``tests/lightcurve/test_frames.py``).
 
     Parameters
     ----------
@@ -47,8 +50,12 @@ def sun_position(mjd: np.ndarray) -> np.ndarray:
     -------
     (n, 3) numpy.ndarray
     """
+    return interpolate_at_nodes(np.atleast_1d(np.asarray(mjd, dtype=float)), _sun_astropy)
+
+
+def _sun_astropy(mjd: np.ndarray) -> np.ndarray:
     u, _, get_body, time = _astropy()
-    t = time(np.atleast_1d(mjd), format="mjd", scale="utc")
+    t = time(mjd, format="mjd", scale="utc")
     return get_body("sun", t).cartesian.xyz.to_value(u.km).T
 
 
@@ -70,9 +77,20 @@ class Site:
     altitude_m: float = 0.0
     name: str = "site"
 
+    @property
+    def label(self) -> str:
+        """``name (lat, lon, alt m)`` for file headers."""
+        return (
+            f"{self.name} ({self.latitude_deg:.4f}, {self.longitude_deg:.4f}, "
+            f"{self.altitude_m:.0f} m)"
+        )
+
 
 def site_position(site: Site, mjd: np.ndarray) -> np.ndarray:
     """Geocentric GCRS position of a ground site (km), Earth rotation included.
+
+    The site's WGS84 ITRS position rotated by :func:`lightcurve.frames.frame_rotations`
+    (astropy's ITRS → GCRS transformation, IERS Earth orientation).
 
     Parameters
     ----------
@@ -84,12 +102,10 @@ def site_position(site: Site, mjd: np.ndarray) -> np.ndarray:
     -------
     (n, 3) numpy.ndarray
     """
-    u, earth_location, _, time = _astropy()
-    location = earth_location.from_geodetic(
-        site.longitude_deg * u.deg, site.latitude_deg * u.deg, site.altitude_m * u.m
-    )
-    t = time(np.atleast_1d(mjd), format="mjd", scale="utc")
-    return location.get_gcrs(t).cartesian.xyz.to_value(u.km).T
+    from lightcurve.sites import site_itrs
+
+    rotations = frame_rotations(np.atleast_1d(np.asarray(mjd, dtype=float)))
+    return rotations.itrs_to_gcrs @ site_itrs(site)
 
 
 @dataclass(frozen=True)
@@ -179,7 +195,7 @@ def orbit_geometry(
     to_observer = r_site - r_obj
     up = r_site / np.linalg.norm(r_site, axis=1, keepdims=True)
     sun_dir = r_sun / np.linalg.norm(r_sun, axis=1, keepdims=True)
-    keep = ~_in_earth_shadow(r_obj, sun_dir)
+    keep = ~earth_shadow(r_obj, r_sun, "cylindrical").in_umbra
     if min_elevation_deg is not None:
         los = -to_observer / np.linalg.norm(to_observer, axis=1, keepdims=True)
         keep &= np.sum(up * los, axis=1) >= np.sin(np.deg2rad(min_elevation_deg))
@@ -203,18 +219,10 @@ def orbit_geometry(
     meta = {
         "object": name,
         "frame": "GCRS",
-        "site": f"{site.name} ({site.latitude_deg:.4f}, {site.longitude_deg:.4f}, "
-        f"{site.altitude_m:.0f} m)",
+        "site": site.label,
         "target": "satellite",
     }
     return Observations(validate_table(table, name, meta, require_magnitudes=False), meta)
-
-
-def _in_earth_shadow(position: np.ndarray, sun_direction: np.ndarray) -> np.ndarray:
-    """Cylindrical umbra test: behind the Earth and within one Earth radius of the axis."""
-    along = np.sum(position * sun_direction, axis=1)
-    perpendicular = np.linalg.norm(position - along[:, None] * sun_direction, axis=1)
-    return (along < 0) & (perpendicular < EARTH_RADIUS_KM)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -13,8 +13,11 @@ metadata. Columns (the contract of ``docs/formats.md``):
 ``obs_x, obs_y, obs_z``
     Object → observer vector, same frame, km.
 Optional: ``filter`` (str), ``exposure_s`` (s), ``lightcurve_id`` (int; rows of one light
-curve), ``relative`` (bool; the light curve has an arbitrary magnitude offset), and truth
-columns ``q1 q2 q3 q4 wx wy wz`` (attitude inertial → body, body rates in rad/s).
+curve), ``relative`` (bool; the light curve has an arbitrary magnitude offset), truth
+columns ``q1 q2 q3 q4 wx wy wz`` (attitude inertial → body, body rates in rad/s), and the
+geometry of Earth satellites written by ``geometry --tle`` and ``import``: ``shadow``
+(sunlit, penumbra, umbra, annular), ``sunlit_fraction``, ``phase_angle_deg``, ``range_km``,
+``elevation_deg``, ``azimuth_deg``, ``airmass``, ``tle_age_days``.
 
 Kilometres and MJD are the file units; the accessors (:attr:`Observations.times`,
 :attr:`Observations.sun_vectors`, …) return SI values (s, m).
@@ -28,6 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+
+from lightcurve.shadow_earth import SHADOW_STATES
 
 __all__ = [
     "KM",
@@ -45,7 +50,18 @@ SUN_COLUMNS = ("sun_x", "sun_y", "sun_z")
 OBSERVER_COLUMNS = ("obs_x", "obs_y", "obs_z")
 TRUTH_COLUMNS = ("q1", "q2", "q3", "q4", "wx", "wy", "wz")
 MAG_COLUMNS = ("mag", "mag_err")
-OPTIONAL_NUMERIC = ("exposure_s", "lightcurve_id", *TRUTH_COLUMNS)
+#: Geometry written alongside the vectors by ``geometry --tle`` and ``import``.
+GEOMETRY_NUMERIC = (
+    "sunlit_fraction",
+    "phase_angle_deg",
+    "range_km",
+    "elevation_deg",
+    "azimuth_deg",
+    "airmass",
+    "tle_age_days",
+)
+GEOMETRY_COLUMNS = ("shadow", *GEOMETRY_NUMERIC)
+OPTIONAL_NUMERIC = ("exposure_s", "lightcurve_id", *TRUTH_COLUMNS, *GEOMETRY_NUMERIC)
 KNOWN_COLUMNS = (
     "epoch",
     "mjd",
@@ -57,6 +73,7 @@ KNOWN_COLUMNS = (
     "lightcurve_id",
     "relative",
     *TRUTH_COLUMNS,
+    *GEOMETRY_COLUMNS,
 )
 
 # Plausible ranges (km) used to catch vectors given in the wrong unit.
@@ -385,6 +402,16 @@ def validate_table(
                 if label == "object->observer" and meta.get("target") != "asteroid"
                 else ""
             ),
+        )
+    if "sunlit_fraction" in table:
+        fraction = table["sunlit_fraction"].fillna(1.0).to_numpy()
+        flag((fraction < 0) | (fraction > 1), "sunlit_fraction", "sunlit_fraction not in [0, 1]")
+    if "shadow" in table:
+        table["shadow"] = table["shadow"].astype(str).str.strip()
+        flag(
+            ~table["shadow"].isin(SHADOW_STATES).to_numpy(),
+            "shadow",
+            f"shadow must be one of {', '.join(SHADOW_STATES)}",
         )
     if all(c in table for c in TRUTH_COLUMNS[:4]):
         qn = np.linalg.norm(table[list(TRUTH_COLUMNS[:4])].fillna(1.0).to_numpy(), axis=1)

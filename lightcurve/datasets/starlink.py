@@ -24,8 +24,14 @@ import pandas as pd
 
 from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix
-from lightcurve.ephemeris import Site, site_position, sun_position
-from lightcurve.observations import Observations, datetime_to_mjd, validate_table
+from lightcurve.ephemeris import Site, site_position
+from lightcurve.observations import (
+    OBSERVER_COLUMNS,
+    SUN_COLUMNS,
+    Observations,
+    datetime_to_mjd,
+    validate_table,
+)
 from lightcurve.render import Renderer
 from shapes import FacetModel, Material
 
@@ -34,6 +40,7 @@ __all__ = [
     "MOUNT_LEMMON",
     "POMENIS_PATH",
     "SOLAR_ARRAY_AREA_M2",
+    "predict_observations",
     "predict_pomenis",
     "read_pomenis",
     "starlink_attitude",
@@ -46,7 +53,6 @@ POMENIS_PATH = (
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon (Pomenis)")
 CHASSIS_AREA_M2 = 3.64
 SOLAR_ARRAY_AREA_M2 = 22.68
-EARTH_RADIUS_KM = 6378.137
 
 
 def read_pomenis(path: str | Path = POMENIS_PATH) -> pd.DataFrame:
@@ -150,17 +156,15 @@ def starlink_attitude(position_km: np.ndarray, sun_km: np.ndarray) -> np.ndarray
     return quaternion_from_matrix(np.stack([x, y, z], axis=1))
 
 
-def _slant_range(height_km: np.ndarray, elevation: np.ndarray, site_radius_km: float) -> np.ndarray:
-    """Range to a satellite at ``height_km`` seen at ``elevation`` (rad), spherical Earth."""
-    r_sat = EARTH_RADIUS_KM + height_km
-    s = np.sin(elevation)
-    return -site_radius_km * s + np.sqrt((site_radius_km * s) ** 2 + r_sat**2 - site_radius_km**2)
-
-
 def pomenis_geometry(
     table: pd.DataFrame, site: Site = MOUNT_LEMMON
 ) -> tuple[Observations, np.ndarray]:
     """Observation geometry (GCRS, km) and attitudes of the Pomenis observations.
+
+    The satellite is placed along the observed line of sight (elevation, azimuth) at the
+    recorded height above the WGS84 ellipsoid (:func:`lightcurve.topocentric.range_from_height`,
+    :func:`lightcurve.satellite_geometry.from_horizontal`) — the route of
+    ``lightcurve import --alt-az-range-columns … --range-kind height``.
 
     Returns
     -------
@@ -169,36 +173,15 @@ def pomenis_geometry(
     q : (n, 4) numpy.ndarray
         Model attitudes.
     """
-    from astropy import units as u
-    from astropy.coordinates import GCRS, AltAz, EarthLocation, SkyCoord
-    from astropy.time import Time
+    from lightcurve.satellite_geometry import from_horizontal
+    from lightcurve.topocentric import range_from_height
 
-    mjd = table["mjd"].to_numpy()
-    r_site = site_position(site, mjd)
-    elevation = np.deg2rad(table["altitude_deg"].to_numpy())
-    site_radius = EARTH_RADIUS_KM + site.altitude_m / 1000.0
-    distance = _slant_range(table["height_km"].to_numpy(), elevation, site_radius)
-    location = EarthLocation.from_geodetic(
-        site.longitude_deg * u.deg, site.latitude_deg * u.deg, site.altitude_m * u.m
-    )
-    times = Time(mjd, format="mjd", scale="utc")
-    topocentric = SkyCoord(
-        az=table["azimuth_deg"].to_numpy() * u.deg,
-        alt=table["altitude_deg"].to_numpy() * u.deg,
-        distance=distance * u.km,
-        frame=AltAz(obstime=times, location=location),
-    )
-    r_sat = topocentric.transform_to(GCRS(obstime=times)).cartesian.xyz.to_value(u.km).T
-    r_sun = sun_position(mjd)
-    frame = pd.DataFrame(
-        {
-            "mjd": mjd,
-            "mag": table["mag"].to_numpy(),
-            "mag_err": 0.1,
-            **{f"sun_{a}": (r_sun - r_sat)[:, k] for k, a in enumerate("xyz")},
-            **{f"obs_{a}": (r_site - r_sat)[:, k] for k, a in enumerate("xyz")},
-        }
-    )
+    elevation = table["altitude_deg"].to_numpy()
+    azimuth = table["azimuth_deg"].to_numpy()
+    distance = range_from_height(site, elevation, azimuth, table["height_km"].to_numpy())
+    geometry = from_horizontal(site, table["mjd"].to_numpy(), elevation, azimuth, distance)
+    vectors = geometry.table()[["mjd", *SUN_COLUMNS, *OBSERVER_COLUMNS]]
+    frame = vectors.assign(mag=table["mag"].to_numpy(), mag_err=0.1)
     meta = {
         "object": "Starlink v1.5 (Pomenis)",
         "frame": "GCRS",
@@ -206,9 +189,41 @@ def pomenis_geometry(
         "target": "satellite",
         "duplicate_epochs": "allowed",
     }
-    frame = frame.sort_values("mjd", kind="stable")
-    observations = Observations(validate_table(frame, "pomenis", meta), meta, "pomenis")
-    return observations, starlink_attitude(r_sat, r_sun)
+    order = np.argsort(frame["mjd"].to_numpy(), kind="stable")
+    observations = Observations(validate_table(frame.iloc[order], "pomenis", meta), meta, "pomenis")
+    q = starlink_attitude(geometry.object_gcrs[order], geometry.sun_gcrs[order])
+    return observations, q
+
+
+def predict_observations(observations: Observations, site: Site = MOUNT_LEMMON) -> np.ndarray:
+    """Predicted magnitudes of a Starlink v1.5 in any observation file from ``site``.
+
+    The satellite's and the Sun's geocentric positions are recovered from the file's
+    object → observer and object → Sun vectors and the site's GCRS position; the attitude
+    follows the nadir-pointing, Sun-facing law (:func:`starlink_attitude`).
+
+    Parameters
+    ----------
+    observations : Observations
+        GCRS vectors (e.g. from ``lightcurve import``).
+    site : Site
+
+    Returns
+    -------
+    (n,) numpy.ndarray
+        Magnitudes.
+    """
+    km = 1000.0
+    position = site_position(site, observations.mjd) - observations.observer_vectors / km
+    q = starlink_attitude(position, position + observations.sun_vectors / km)
+    return _render(q, observations)
+
+
+def _render(q: np.ndarray, observations: Observations) -> np.ndarray:
+    # The paper's model is two independent surfaces: no mutual shadowing.
+    return Renderer(starlink_model(), shadows="none").magnitude(
+        q, observations.sun_vectors, observations.observer_vectors
+    )
 
 
 def predict_pomenis(table: pd.DataFrame | None = None) -> pd.DataFrame:
@@ -229,10 +244,7 @@ def predict_pomenis(table: pd.DataFrame | None = None) -> pd.DataFrame:
 
     table = read_pomenis() if table is None else table
     observations, q = pomenis_geometry(table)
-    # The paper's model is two independent surfaces: no mutual shadowing.
-    predicted = Renderer(starlink_model(), shadows="none").magnitude(
-        q, observations.sun_vectors, observations.observer_vectors
-    )
+    predicted = _render(q, observations)
     measured = observations.magnitudes
     return pd.DataFrame(
         {
