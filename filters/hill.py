@@ -26,10 +26,12 @@ from filters.kalman import discrete_process_noise
 __all__ = [
     "EARTH_MU",
     "EARTH_RADIUS",
+    "circular_orbit",
     "cw_input_matrix",
     "cw_matrix",
     "cw_process_noise",
     "cw_transition",
+    "hill_rotation",
     "mean_motion",
 ]
 
@@ -189,3 +191,66 @@ def cw_process_noise(n: float, dt: float, psd: float) -> np.ndarray:
     q = np.zeros((6, 6))
     q[3:, 3:] = psd * np.eye(3)
     return discrete_process_noise(cw_matrix(n), q, dt)[1]
+
+
+def circular_orbit(
+    radius: float,
+    inclination: float,
+    raan: float,
+    latitude_argument: float,
+    t: Any,
+    mu: float = EARTH_MU,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity on a circular orbit (inertial frame of the elements).
+
+    Parameters
+    ----------
+    radius : float
+        Orbit radius (m).
+    inclination, raan : float
+        Inclination and right ascension of the ascending node (rad).
+    latitude_argument : float
+        Argument of latitude at ``t = 0`` (rad).
+    t : (...) array_like
+        Times (s).
+    mu : float
+        Gravitational parameter (m³/s²).
+
+    Returns
+    -------
+    position, velocity : (..., 3) numpy.ndarray
+        (m, m/s).
+    """
+    n = mean_motion(radius, mu)
+    u = latitude_argument + n * np.asarray(t, dtype=float)
+    cu, su = np.cos(u), np.sin(u)
+    cn, sn = math.cos(raan), math.sin(raan)
+    ci, si = math.cos(inclination), math.sin(inclination)
+    radial = np.stack([cu * cn - su * ci * sn, cu * sn + su * ci * cn, su * si], axis=-1)
+    along = np.stack([-su * cn - cu * ci * sn, -su * sn + cu * ci * cn, cu * si], axis=-1)
+    return radius * radial, radius * n * along
+
+
+def hill_rotation(position: Any, velocity: Any) -> np.ndarray:
+    """Rotation matrix from the inertial frame to the Hill frame of an orbiting body.
+
+    Rows are the Hill axes in inertial coordinates: ``x`` radial (``r̂``), ``z`` along the
+    angular momentum (``ĥ = r × v / |r × v|``), ``y = z × x`` (along-track).
+
+    Parameters
+    ----------
+    position, velocity : (..., 3) array_like
+        Inertial state of the reference body (m, m/s).
+
+    Returns
+    -------
+    (..., 3, 3) numpy.ndarray
+        ``R`` with ``v_Hill = R v_inertial``.
+    """
+    r = np.asarray(position, dtype=float)
+    v = np.asarray(velocity, dtype=float)
+    x = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    h = np.cross(r, v)
+    z = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=-2)
