@@ -103,12 +103,13 @@ def _permute(lo: np.ndarray, d: np.ndarray, j: int, delta: float, z: np.ndarray)
     lam = d[j + 1] * lo[j + 1, j] / delta
     d[j] = eta * d[j + 1]
     d[j + 1] = delta
-    a0, a1 = lo[j, :j].copy(), lo[j + 1, :j].copy()
-    lo[j, :j] = -lo[j + 1, j] * a0 + a1
+    a0 = lo[j, :j].copy()
+    a1 = lo[j + 1, :j].copy()
+    lo[j, :j] = a1 - lo[j + 1, j] * a0
     lo[j + 1, :j] = eta * a0 + lam * a1
     lo[j + 1, j] = lam
-    lo[j + 2 :, [j, j + 1]] = lo[j + 2 :, [j + 1, j]]
-    z[:, [j, j + 1]] = z[:, [j + 1, j]]
+    lo[j + 2 :, j : j + 2] = lo[j + 2 :, j + 1 : j - 1 if j else None : -1].copy()
+    z[:, j : j + 2] = z[:, j + 1 : j - 1 if j else None : -1].copy()
 
 
 def decorrelate(q: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
