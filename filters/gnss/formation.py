@@ -15,6 +15,7 @@ otherwise code-only) and, separately, with code-only fixes.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -55,6 +56,10 @@ class FormationScenario:
     solver : RelativeGnssConfig
     filter_accelerometer_noise : float
         Process noise of the navigation filter per measurement interval (m/s²).
+    slips : tuple of (time, receiver, prn, cycles)
+        Cycle slips to inject (time in s from the start; receiver 0 target, 1 chaser).
+
+    The receiver's obstruction windows are in seconds from the start as well.
     """
 
     almanac: Almanac
@@ -66,6 +71,7 @@ class FormationScenario:
     receiver: ReceiverModel = field(default_factory=ReceiverModel)
     solver: RelativeGnssConfig = field(default_factory=RelativeGnssConfig)
     filter_accelerometer_noise: float = 4e-4
+    slips: tuple[tuple[float, int, int, int], ...] = ()
 
 
 @dataclass
@@ -89,6 +95,12 @@ class FormationResult:
         Navigation-filter position errors with the best fixes and with code-only fixes.
     time_to_first_fix : float or None
         Seconds from the first epoch to the first fixed epoch.
+    detected_slips : list of (time, prn)
+        Cycle slips reported by the solver (seconds from the start).
+    references : (T,) numpy.ndarray of int
+        Reference satellite of each epoch (−1 without a relative solution).
+    fixed_ambiguities : list of dict[int, int]
+        Fixed double-difference ambiguities of each epoch by PRN.
     elapsed_s : float
     """
 
@@ -102,6 +114,9 @@ class FormationResult:
     filtered_errors: np.ndarray
     filtered_code_errors: np.ndarray
     time_to_first_fix: float | None
+    detected_slips: list[tuple[float, int]]
+    references: np.ndarray
+    fixed_ambiguities: list[dict[int, int]]
     elapsed_s: float
 
     @property
@@ -147,8 +162,18 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
     )
     gps_t, t, target, rotation, hill, baseline, n = _formation_truth(sc, rng_geometry)
     constellation = Constellation(sc.almanac)
+    start = gps_t[0]
+    receiver = dataclasses.replace(
+        sc.receiver,
+        obstructions=tuple((a + start, b + start, m) for a, b, m in sc.receiver.obstructions),
+    )
     obs = simulate_observations(
-        constellation, gps_t, np.stack([target, target + baseline]), sc.receiver, rng_gnss
+        constellation,
+        gps_t,
+        np.stack([target, target + baseline]),
+        receiver,
+        rng_gnss,
+        slips=tuple((t_slip + start, r, p, c) for t_slip, r, p, c in sc.slips),
     )
     solver = RelativeGnssSolver(constellation, sc.solver)
     amb = obs.truth["ambiguity"]
@@ -160,11 +185,17 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         np.full((steps, 3), np.nan) for _ in range(5)
     )
     filters: dict[str, RelativeNavigationFilter] = {}
+    detected: list[tuple[float, int]] = []
+    references = np.full(steps, -1)
+    fixed_ambiguities: list[dict[int, int]] = []
     for k in range(steps):
         sol = solver.process(
             gps_t[k], obs.prn, obs.code[0, k], obs.phase[0, k], obs.code[1, k], obs.phase[1, k]
         )
         status[k], satellites[k] = sol.status, sol.satellites
+        detected.extend((float(t[k]), p) for p in sol.slips)
+        references[k] = -1 if sol.reference is None else sol.reference
+        fixed_ambiguities.append(sol.ambiguities)
         rot = rotation[k]
         for kf in filters.values():
             kf.predict(np.zeros(3), sc.period)
@@ -208,5 +239,8 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         filtered_errors=filt_err,
         filtered_code_errors=filt_code_err,
         time_to_first_fix=ttff,
+        detected_slips=detected,
+        references=references,
+        fixed_ambiguities=fixed_ambiguities,
         elapsed_s=time.perf_counter() - clock,
     )

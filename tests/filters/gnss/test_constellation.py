@@ -69,7 +69,9 @@ def test_velocity_is_the_derivative_of_position(constellation):
     numeric = (constellation.positions(t + h) - constellation.positions(t - h)) / (2 * h)
     np.testing.assert_allclose(constellation.velocities(t), numeric, atol=2e-6)
     # Eccentric orbits too.
-    almanac = parse_yuma(ALMANAC.read_text().replace("0.0000000000E+00\nTime", "1.5000000000E-02\nTime"))
+    almanac = parse_yuma(
+        ALMANAC.read_text().replace("0.0000000000E+00\nTime", "1.5000000000E-02\nTime")
+    )
     eccentric = Constellation(almanac)
     assert np.all(almanac.eccentricity == 0.015)
     numeric = (eccentric.positions(t + h) - eccentric.positions(t - h)) / (2 * h)
@@ -111,7 +113,9 @@ def test_parser_errors_name_the_record_and_field():
 
 
 def test_unhealthy_satellites_can_be_dropped():
-    text = ALMANAC.read_text().replace("Health:                     000", "Health:                     063", 1)
+    text = ALMANAC.read_text().replace(
+        "Health:                     000", "Health:                     063", 1
+    )
     almanac = parse_yuma(text)
     assert almanac.size == 24 and almanac.healthy().size == 23
     assert 1 not in almanac.healthy().prn

@@ -114,7 +114,9 @@ def test_float_normal_equations_match_an_independent_two_epoch_batch():
                                    rtol=1e-12, atol=1e-12 * np.abs(n_bb).max())  # fmt: skip
     scale = np.abs(reduced).max()
     np.testing.assert_allclose(amb.normal, reduced, rtol=1e-12, atol=1e-12 * scale)
-    np.testing.assert_allclose(amb.rhs, reduced_rhs, rtol=1e-12, atol=1e-12 * np.abs(reduced_rhs).max())
+    np.testing.assert_allclose(
+        amb.rhs, reduced_rhs, rtol=1e-12, atol=1e-12 * np.abs(reduced_rhs).max()
+    )
     a_hat, q_hat = amb.float_solution(np.arange(n), conditional=False)
     np.testing.assert_allclose(a_hat, full_solution[6:], rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(q_hat, np.linalg.inv(normal)[6:, 6:], rtol=1e-10, atol=1e-14)
