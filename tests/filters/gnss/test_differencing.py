@@ -127,7 +127,7 @@ def test_float_normal_equations_match_an_independent_two_epoch_batch():
 
 
 def test_reference_change_and_marginalisation_preserve_the_solution():
-    m, ref, designs, sig_p, sig_f, ys = two_epoch_problem(seed=9)
+    _, ref, designs, sig_p, sig_f, ys = two_epoch_problem(seed=9)
     prns = [21, 22, 24, 25, 26]
     amb = AmbiguityNormals(reference=23)
     amb.add(prns)

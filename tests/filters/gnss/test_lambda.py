@@ -80,7 +80,7 @@ def test_enumeration_agrees_with_a_plain_box_search():
     for n in (2, 3, 4):
         a, q = random_problem(rng, n, badly=True)
         radius = 3.0
-        points, norms = enumerate_ellipsoid(a, q, radius)
+        points, _ = enumerate_ellipsoid(a, q, radius)
         half = np.sqrt(radius * np.diag(q))
         axes = [np.arange(np.ceil(a[i] - half[i]), np.floor(a[i] + half[i]) + 1) for i in range(n)]
         box = np.array(np.meshgrid(*axes, indexing="ij")).reshape(n, -1).T
@@ -92,7 +92,7 @@ def test_enumeration_agrees_with_a_plain_box_search():
 
 def test_ldl_and_the_decorrelated_factors():
     rng = np.random.default_rng(1)
-    a, q = random_problem(rng, 6, badly=True)
+    _, q = random_problem(rng, 6, badly=True)
     lo, d = ldl(q)
     np.testing.assert_allclose(lo.T @ np.diag(d) @ lo, q, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(np.diag(lo), 1.0)
@@ -112,7 +112,7 @@ def test_search_returns_several_candidates_in_order():
     z, lo, d = decorrelate(q)
     found, norms = integer_search(z.T @ a, lo, d, candidates=6)
     assert np.all(np.diff(norms) >= 0)
-    points, all_norms = enumerate_ellipsoid(z.T @ a, z.T @ q @ z, norms[-1] * (1 + 1e-9))
+    _, all_norms = enumerate_ellipsoid(z.T @ a, z.T @ q @ z, norms[-1] * (1 + 1e-9))
     np.testing.assert_allclose(np.sort(all_norms)[:6], norms, rtol=1e-9)
     assert len({tuple(f) for f in found}) == 6
 
