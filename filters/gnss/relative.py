@@ -610,7 +610,10 @@ class RelativeGnssSolver:
                     amb = AmbiguityNormals(int(prns[ref]))
                     amb.add(others)
                     slipped = [int(p) for p in prns]
-                    messages.append("cycle slip on the reference: ambiguities re-initialised")
+                    messages.append(
+                        "cycle slip on the reference or not identifiable: all ambiguities "
+                        "re-initialised"
+                    )
                 else:
                     slipped = [int(others[rows[i]]) for i in flagged]
                     amb.reset(slipped)
