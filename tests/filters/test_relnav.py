@@ -232,8 +232,9 @@ def rgnss_approach(mode: str, duration: float = 180.0, **rgnss) -> ApproachScena
     }  # fmt: skip
     modes = {"cooperative": ("rgnss",), "non-cooperative": ("lidar",),
              "semi-cooperative": ("lidar", "rgnss")}  # fmt: skip
+    start = sensor.almanac.toa[0] + 3600.0
     return approach(sensors=sensors, modes=modes, mode=mode, duration=duration,
-                    approach_duration=0.6 * duration, gnss_start=sensor.almanac.toa[0] + 3600.0)  # fmt: skip
+                    approach_duration=0.6 * duration, gnss_start=start)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
