@@ -36,6 +36,7 @@ J. Geodesy 73).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -89,27 +90,36 @@ def ldl(q: Any) -> tuple[np.ndarray, np.ndarray]:
     return lo, d
 
 
-def _gauss(lo: np.ndarray, z: np.ndarray, i: int, j: int) -> None:
-    """Integer Gauss transformation making ``|L[i, j]| ≤ ½`` (in place)."""
-    mu = np.rint(lo[i, j])
-    if mu != 0:
-        lo[i:, j] -= mu * lo[i:, i]
-        z[:, j] -= mu * z[:, i]
+# The reduction and the search work on nested Python lists: for the handful of ambiguities of
+# one epoch (n ≤ ~15) scalar list arithmetic is several times faster than numpy indexing.
 
 
-def _permute(lo: np.ndarray, d: np.ndarray, j: int, delta: float, z: np.ndarray) -> None:
+def _gauss(lo: list[list[float]], z: list[list[float]], i: int, j: int) -> None:
+    """Integer Gauss transformation making ``|L[i][j]| ≤ ½`` (in place)."""
+    mu = round(lo[i][j])
+    if mu:
+        for r in range(i, len(lo)):
+            lo[r][j] -= mu * lo[r][i]
+        for row in z:
+            row[j] -= mu * row[i]
+
+
+def _permute(lo: list[list[float]], d: list[float], j: int, delta: float, z) -> None:
     """Swap ambiguities ``j`` and ``j + 1`` and update ``L``, ``D`` and ``Z`` (in place)."""
     eta = d[j] / delta
-    lam = d[j + 1] * lo[j + 1, j] / delta
+    lam = d[j + 1] * lo[j + 1][j] / delta
     d[j] = eta * d[j + 1]
     d[j + 1] = delta
-    a0 = lo[j, :j].copy()
-    a1 = lo[j + 1, :j].copy()
-    lo[j, :j] = a1 - lo[j + 1, j] * a0
-    lo[j + 1, :j] = eta * a0 + lam * a1
-    lo[j + 1, j] = lam
-    lo[j + 2 :, j : j + 2] = lo[j + 2 :, j + 1 : j - 1 if j else None : -1].copy()
-    z[:, j : j + 2] = z[:, j + 1 : j - 1 if j else None : -1].copy()
+    l10 = lo[j + 1][j]
+    for c in range(j):
+        a0, a1 = lo[j][c], lo[j + 1][c]
+        lo[j][c] = a1 - l10 * a0
+        lo[j + 1][c] = eta * a0 + lam * a1
+    lo[j + 1][j] = lam
+    for row in lo[j + 2 :]:
+        row[j], row[j + 1] = row[j + 1], row[j]
+    for row in z:
+        row[j], row[j + 1] = row[j + 1], row[j]
 
 
 def decorrelate(q: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -127,22 +137,23 @@ def decorrelate(q: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     L, D : numpy.ndarray
         ``Zᵀ Q Z = Lᵀ diag(D) L``.
     """
-    lo, d = ldl(q)
+    lo_arr, d_arr = ldl(q)
+    lo, d = lo_arr.tolist(), d_arr.tolist()
     n = len(d)
-    z = np.eye(n)
+    z = np.eye(n).tolist()
     j = k = n - 2
     while j >= 0:
         if j <= k:
             for i in range(j + 1, n):
                 _gauss(lo, z, i, j)
-        delta = d[j] + lo[j + 1, j] ** 2 * d[j + 1]
+        delta = d[j] + lo[j + 1][j] ** 2 * d[j + 1]
         if delta + 1e-6 < d[j + 1]:
             _permute(lo, d, j, delta, z)
             k = j
             j = n - 2
         else:
             j -= 1
-    return z, lo, d
+    return np.array(z), np.array(lo), np.array(d)
 
 
 def integer_search(
@@ -170,71 +181,69 @@ def integer_search(
     squared_norms : (candidates,) numpy.ndarray
         ``(ẑ − z)ᵀ Q_z⁻¹ (ẑ − z)`` of each.
     """
-    zs = np.asarray(z_float, dtype=float)
-    lo = np.asarray(lo, dtype=float)
-    d = np.asarray(d, dtype=float)
+    zs = [float(v) for v in np.asarray(z_float, dtype=float)]
+    lo = np.asarray(lo, dtype=float).tolist()
+    d = [float(v) for v in np.asarray(d, dtype=float)]
     n = len(zs)
     if candidates < 1:
         raise ValueError("candidates must be >= 1")
-    s_mat = np.zeros((n, n))
-    dist = np.zeros(n)
-    zb = np.zeros(n)
-    z = np.zeros(n)
-    step = np.zeros(n)
-    found = np.zeros((candidates, n))
-    norms = np.full(candidates, np.inf)
+    s_mat = [[0.0] * n for _ in range(n)]
+    dist = [0.0] * n
+    zb = [0.0] * n
+    z = [0.0] * n
+    step = [0.0] * n
+    found: list[list[float]] = [[0.0] * n for _ in range(candidates)]
+    norms = [math.inf] * candidates
     count = 0
     worst = 0
-    max_dist = np.inf
-
-    def sign(x: float) -> float:
-        return -1.0 if x <= 0 else 1.0
+    max_dist = math.inf
 
     k = n - 1
     zb[k] = zs[k]
-    z[k] = np.rint(zb[k])
+    z[k] = float(round(zb[k]))
     y = zb[k] - z[k]
-    step[k] = sign(y)
+    step[k] = -1.0 if y <= 0 else 1.0
     for _ in range(max_steps):
         new_dist = dist[k] + y * y / d[k]
         if new_dist < max_dist:
             if k != 0:
                 k -= 1
                 dist[k] = new_dist
-                s_mat[k, : k + 1] = (
-                    s_mat[k + 1, : k + 1] + (z[k + 1] - zb[k + 1]) * lo[k + 1, : k + 1]
-                )
-                zb[k] = zs[k] + s_mat[k, k]
-                z[k] = np.rint(zb[k])
+                shift = z[k + 1] - zb[k + 1]
+                above, row, lk1 = s_mat[k + 1], s_mat[k], lo[k + 1]
+                for c in range(k + 1):
+                    row[c] = above[c] + shift * lk1[c]
+                zb[k] = zs[k] + row[k]
+                z[k] = float(round(zb[k]))
                 y = zb[k] - z[k]
-                step[k] = sign(y)
+                step[k] = -1.0 if y <= 0 else 1.0
             else:
                 if count < candidates:
                     if count == 0 or new_dist > norms[worst]:
                         worst = count
-                    found[count] = z
+                    found[count] = z.copy()
                     norms[count] = new_dist
                     count += 1
                 else:
                     if new_dist < norms[worst]:
-                        found[worst] = z
+                        found[worst] = z.copy()
                         norms[worst] = new_dist
-                        worst = int(np.argmax(norms))
+                        worst = max(range(candidates), key=norms.__getitem__)
                     max_dist = norms[worst]
                 z[0] += step[0]
                 y = zb[0] - z[0]
-                step[0] = -step[0] - sign(step[0])
+                step[0] = -step[0] - (-1.0 if step[0] <= 0 else 1.0)
         else:
             if k == n - 1:
                 break
             k += 1
             z[k] += step[k]
             y = zb[k] - z[k]
-            step[k] = -step[k] - sign(step[k])
+            step[k] = -step[k] - (-1.0 if step[k] <= 0 else 1.0)
     else:
         raise RuntimeError(f"integer search did not finish in {max_steps} steps")
     order = np.argsort(norms, kind="stable")
-    return found[order], norms[order]
+    return np.array(found)[order], np.array(norms)[order]
 
 
 def bootstrapped_success_rate(conditional_variances: Any) -> float:
