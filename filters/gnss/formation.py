@@ -41,6 +41,7 @@ class FormationScenario:
     Attributes
     ----------
     almanac : Almanac
+        Broadcast almanac (its unhealthy satellites are left out).
     altitude : float
         Target orbit altitude (m).
     inclination : float
@@ -161,7 +162,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
     )
     gps_t, t, target, rotation, hill, baseline, n = _formation_truth(sc, rng_geometry)
-    constellation = Constellation(sc.almanac)
+    constellation = Constellation(sc.almanac.healthy())
     start = gps_t[0]
     receiver = dataclasses.replace(
         sc.receiver,

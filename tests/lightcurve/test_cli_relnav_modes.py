@@ -47,7 +47,7 @@ def test_each_mode_scenario_defines_the_three_modes():
         assert set(sc.modes) == {"cooperative", "non-cooperative", "semi-cooperative"}
         assert sc.sensors["lidar"].backup == "stereo"
         rgnss = sc.sensors["rgnss"]
-        assert rgnss.almanac.size == 24 and rgnss.solver.ratio_threshold == 3.0
+        assert rgnss.almanac.size == 30 and rgnss.solver.ratio_threshold == 3.0
     semi, _ = load_relnav_scenario(SCENARIOS / "relnav_semi_cooperative.toml")
     assert semi.sensors["rgnss"].chaser_receiver.obstructions[0][:2] == (3000.0, 3300.0)
 

@@ -21,7 +21,7 @@ from filters.gnss.measurements import (
 from filters.gnss.relative import RelativeGnssSolver
 from filters.hill import circular_orbit
 
-ALMANAC = Path(__file__).resolve().parents[3] / "data" / "gnss" / "gps_nominal_24slot.alm"
+ALMANAC = Path(__file__).resolve().parents[3] / "data" / "gnss" / "gps_week147_yuma.alm"
 
 
 @pytest.fixture(scope="module")
