@@ -3,8 +3,9 @@
 Frame (the Hill or LVLH frame of the reference orbit, origin at the reference body):
 ``x`` radial (away from the Earth), ``y`` along-track (direction of motion), ``z`` along the
 orbit normal (angular momentum). The state is ``[x, y, z, ẋ, ẏ, ż]`` (m, m/s) and the
-linearised relative motion under a non-gravitational acceleration ``a`` is (seed 004,
-translation model; seed 003 eq. 2)
+linearised relative motion under a non-gravitational acceleration ``a`` is (the translation
+model of the stereo relative-state filter, ``docs/stereo.md``; Shi et al.'s relative navigation
+eq. 2)
 
 ``ẍ − 2 n ẏ − 3 n² x = a_x``,  ``ÿ + 2 n ẋ = a_y``,  ``z̈ + n² z = a_z``
 
@@ -134,7 +135,7 @@ def cw_input_matrix(n: float, dt: Any) -> np.ndarray:
     """Zero-order-hold input matrix ``Γ(Δt) = ∫₀^Δt Φ(s) ds [0; I]``.
 
     A constant acceleration ``a`` (m/s², Hill frame) applied over the step adds ``Γ a`` to
-    the state: ``s(t + Δt) = Φ(Δt) s(t) + Γ(Δt) a`` (seed 003 eq. 2, ``B_k u_k``).
+    the state: ``s(t + Δt) = Φ(Δt) s(t) + Γ(Δt) a`` (Shi et al.'s eq. 2, ``B_k u_k``).
 
     Parameters
     ----------
