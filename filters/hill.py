@@ -3,8 +3,9 @@
 Frame (the Hill or LVLH frame of the reference orbit, origin at the reference body):
 ``x`` radial (away from the Earth), ``y`` along-track (direction of motion), ``z`` along the
 orbit normal (angular momentum). The state is ``[x, y, z, ẋ, ẏ, ż]`` (m, m/s) and the
-linearised relative motion under a non-gravitational acceleration ``a`` is (seed 004,
-translation model; seed 003 eq. 2)
+linearised relative motion under a non-gravitational acceleration ``a`` is (the translation
+model of the stereo relative-state filter, ``docs/stereo.md``; Shi et al.'s relative navigation
+eq. 2)
 
 ``ẍ − 2 n ẏ − 3 n² x = a_x``,  ``ÿ + 2 n ẋ = a_y``,  ``z̈ + n² z = a_z``
 
@@ -26,10 +27,12 @@ from filters.kalman import discrete_process_noise
 __all__ = [
     "EARTH_MU",
     "EARTH_RADIUS",
+    "circular_orbit",
     "cw_input_matrix",
     "cw_matrix",
     "cw_process_noise",
     "cw_transition",
+    "hill_rotation",
     "mean_motion",
 ]
 
@@ -132,7 +135,7 @@ def cw_input_matrix(n: float, dt: Any) -> np.ndarray:
     """Zero-order-hold input matrix ``Γ(Δt) = ∫₀^Δt Φ(s) ds [0; I]``.
 
     A constant acceleration ``a`` (m/s², Hill frame) applied over the step adds ``Γ a`` to
-    the state: ``s(t + Δt) = Φ(Δt) s(t) + Γ(Δt) a`` (seed 003 eq. 2, ``B_k u_k``).
+    the state: ``s(t + Δt) = Φ(Δt) s(t) + Γ(Δt) a`` (Shi et al.'s eq. 2, ``B_k u_k``).
 
     Parameters
     ----------
@@ -189,3 +192,66 @@ def cw_process_noise(n: float, dt: float, psd: float) -> np.ndarray:
     q = np.zeros((6, 6))
     q[3:, 3:] = psd * np.eye(3)
     return discrete_process_noise(cw_matrix(n), q, dt)[1]
+
+
+def circular_orbit(
+    radius: float,
+    inclination: float,
+    raan: float,
+    latitude_argument: float,
+    t: Any,
+    mu: float = EARTH_MU,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity on a circular orbit (inertial frame of the elements).
+
+    Parameters
+    ----------
+    radius : float
+        Orbit radius (m).
+    inclination, raan : float
+        Inclination and right ascension of the ascending node (rad).
+    latitude_argument : float
+        Argument of latitude at ``t = 0`` (rad).
+    t : (...) array_like
+        Times (s).
+    mu : float
+        Gravitational parameter (m³/s²).
+
+    Returns
+    -------
+    position, velocity : (..., 3) numpy.ndarray
+        (m, m/s).
+    """
+    n = mean_motion(radius, mu)
+    u = latitude_argument + n * np.asarray(t, dtype=float)
+    cu, su = np.cos(u), np.sin(u)
+    cn, sn = math.cos(raan), math.sin(raan)
+    ci, si = math.cos(inclination), math.sin(inclination)
+    radial = np.stack([cu * cn - su * ci * sn, cu * sn + su * ci * cn, su * si], axis=-1)
+    along = np.stack([-su * cn - cu * ci * sn, -su * sn + cu * ci * cn, cu * si], axis=-1)
+    return radius * radial, radius * n * along
+
+
+def hill_rotation(position: Any, velocity: Any) -> np.ndarray:
+    """Rotation matrix from the inertial frame to the Hill frame of an orbiting body.
+
+    Rows are the Hill axes in inertial coordinates: ``x`` radial (``r̂``), ``z`` along the
+    angular momentum (``ĥ = r × v / |r × v|``), ``y = z × x`` (along-track).
+
+    Parameters
+    ----------
+    position, velocity : (..., 3) array_like
+        Inertial state of the reference body (m, m/s).
+
+    Returns
+    -------
+    (..., 3, 3) numpy.ndarray
+        ``R`` with ``v_Hill = R v_inertial``.
+    """
+    r = np.asarray(position, dtype=float)
+    v = np.asarray(velocity, dtype=float)
+    x = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    h = np.cross(r, v)
+    z = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=-2)

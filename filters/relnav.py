@@ -1,23 +1,32 @@
-"""Multi-mode relative navigation with IMU control input and robust position fixes (seed 003).
+"""Multi-mode relative navigation with IMU control input and robust position fixes.
 
-The chaser's position and velocity relative to the target, ``X = [x, y, z, ẋ, ẏ, ż]`` in the
-target's Hill frame (:mod:`filters.hill`), are estimated by one Kalman filter (seed 003
-eqs. 1–5):
+The navigator of Shi, Zhang, Li, Lang & Zheng (*Relative navigation architecture for aerospace
+vehicles based on multimodal measurement*): the chaser's position and velocity relative to the
+target, ``X = [x, y, z, ẋ, ẏ, ż]`` in the target's Hill frame (:mod:`filters.hill`), are
+estimated by one Kalman filter (eqs. 1–5):
 
 * **Propagation** with the accelerometer output as control input every IMU period
   (160 ms in the paper): ``X⁻ = Φ(Δt) X + Γ(Δt) u``, ``P⁻ = Φ P Φᵀ + σ_u² Γ Γᵀ``, with the
   exact Clohessy–Wiltshire ``Φ`` and zero-order-hold ``Γ`` and ``σ_u`` the accelerometer
   noise (m/s², per sample).
 * **Updates** with relative-position fixes ``z = [x, y, z] + v`` from whichever sensors the
-  *mode* selects — lidar (Tridar, σ = 0.05 m), stereo camera, relative GNSS — at their own
-  rates; between fixes the filter only propagates. Covariances use the Joseph form.
+  *mode* selects — lidar (Tridar, σ = 0.05 m), its binocular-camera backup, relative GNSS —
+  at their own rates; between fixes the filter only propagates. Covariances use the Joseph
+  form.
 * **Robustness** against gross optical errors by Huber M-estimation
   (:func:`filters.robust.huber_kalman_update`), or the plain update for comparison.
 
-Modes are configuration, not code: a mode is a list of sensor names
-(:data:`DEFAULT_MODES`: cooperative → relative GNSS, non-cooperative → lidar,
-semi-cooperative → both). Relative GNSS is modelled as position fixes with its own noise;
-the paper's carrier-phase double differences and LAMBDA ambiguity fixing are out of scope.
+Modes are configuration, not code: a mode is a list of sensor names (:data:`DEFAULT_MODES`:
+cooperative → relative GNSS, non-cooperative → lidar, semi-cooperative → both); a sensor
+may name a *backup* that delivers fixes while it is unavailable (the binocular cameras for
+the lidar). Relative GNSS is either a position-fix sensor with its own noise
+(:class:`PositionSensor`) or the full receiver chain of :mod:`filters.gnss`
+(:class:`RgnssSensor`): raw code and carrier phase of both spacecraft, double differences,
+float ambiguities over several epochs, LAMBDA, the ratio test, fixed solutions and cycle-slip
+handling. Its fix is the fixed carrier-phase solution when the ambiguities are fixed, else
+the code double-difference solution, each with its full covariance; with fewer than five
+satellites in common view it delivers nothing and the filter carries on with the other
+sensors (or the IMU alone).
 
 :func:`simulate_approach` runs the paper's scenario: a closed-loop approach from
 ``(−10, 0, 0)`` m to ``(−1, 0, 0)`` m and station keeping, 6000 s.
@@ -25,14 +34,30 @@ the paper's carrier-phase double differences and LAMBDA ambiguity fixing are out
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
+import zlib
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from filters.hill import cw_input_matrix, cw_transition
+from filters.gnss.constellation import Almanac, Constellation
+from filters.gnss.measurements import ReceiverModel, simulate_observations
+from filters.gnss.relative import (
+    RelativeGnssConfig,
+    RelativeGnssSolver,
+    fixed_ambiguities_correct,
+)
+from filters.hill import (
+    EARTH_MU,
+    circular_orbit,
+    cw_input_matrix,
+    cw_transition,
+    hill_rotation,
+)
 from filters.kalman import joseph_update, kalman_gain, mahalanobis_squared
 from filters.robust import HUBER_THRESHOLD, huber_kalman_update
 
@@ -42,6 +67,7 @@ __all__ = [
     "ApproachScenario",
     "PositionSensor",
     "RelativeNavigationFilter",
+    "RgnssSensor",
     "reference_trajectory",
     "simulate_approach",
 ]
@@ -51,7 +77,7 @@ DEFAULT_MODES: dict[str, tuple[str, ...]] = {
     "non-cooperative": ("lidar",),
     "semi-cooperative": ("lidar", "gnss"),
 }
-"""Sensors used by each target type (seed 003 sec. 2.1)."""
+"""Sensors used by each target type (Shi et al., sec. 2.1)."""
 
 _H = np.hstack([np.eye(3), np.zeros((3, 3))])
 
@@ -125,22 +151,24 @@ class RelativeNavigationFilter:
         self.x = phi @ self.x + gam @ np.asarray(u, dtype=float)
         self.P = phi @ self.P @ phi.T + q
 
-    def update(self, z: Any, sigma: float) -> np.ndarray:
+    def update(self, z: Any, noise: Any) -> np.ndarray:
         """Update with a relative-position fix.
 
         Parameters
         ----------
         z : (3,) array_like
             Measured position (m, Hill frame).
-        sigma : float
-            1σ noise of each component (m).
+        noise : float or (3, 3) array_like
+            1σ noise of each component (m), or the fix's full covariance (m²) — relative
+            GNSS solutions have correlated components.
 
         Returns
         -------
         (3,) numpy.ndarray
-            Huber weights of the three components (ones for the plain update).
+            Huber weights of the three whitened components (ones for the plain update).
         """
-        r = sigma**2 * np.eye(3)
+        r = np.asarray(noise, dtype=float)
+        r = r**2 * np.eye(3) if r.ndim == 0 else r
         z = np.asarray(z, dtype=float)
         if self.robust == "huber":
             result = huber_kalman_update(self.x, self.P, z, _H, r, self.huber_threshold)
@@ -150,6 +178,12 @@ class RelativeNavigationFilter:
         self.x = self.x + gain @ (z - _H @ self.x)
         self.P = joseph_update(self.P, gain, _H, r)
         return np.ones(3)
+
+
+def _check_outages(name: str, outages: tuple[tuple[float, float], ...]) -> None:
+    for window in outages:
+        if len(window) != 2 or not window[0] < window[1]:
+            raise ValueError(f"sensor {name!r}: outages are (t_start < t_end), got {window}")
 
 
 @dataclass(frozen=True)
@@ -165,23 +199,73 @@ class PositionSensor:
         Fix interval (s).
     optical : bool
         Whether gross optical errors can occur (outliers are injected only here).
+    outages : tuple of (t_start, t_end)
+        Windows of scenario time (s) without fixes.
+    backup : str or None
+        Sensor that delivers fixes while this one is unavailable.
     """
 
     name: str
     sigma: float
     period: float
     optical: bool
+    outages: tuple[tuple[float, float], ...] = ()
+    backup: str | None = None
 
     def __post_init__(self) -> None:
         for attr in ("sigma", "period"):
             value = getattr(self, attr)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"sensor {self.name!r}: {attr} must be positive, got {value}")
+        _check_outages(self.name, self.outages)
+
+    def available(self, t: float) -> bool:
+        """Whether the sensor delivers a fix at scenario time ``t`` (outside its outages)."""
+        return not any(start <= t < end for start, end in self.outages)
+
+
+@dataclass(frozen=True)
+class RgnssSensor:
+    """Relative GNSS from raw code and carrier phase of both spacecraft (:mod:`filters.gnss`).
+
+    Attributes
+    ----------
+    name : str
+    period : float
+        Measurement interval (s).
+    almanac : Almanac
+        The GPS constellation (truth and broadcast orbits alike).
+    target_receiver, chaser_receiver : ReceiverModel
+        Error models and elevation masks of the two receivers; obstruction windows are in
+        scenario time.
+    solver : RelativeGnssConfig
+    satellite_clock_sigma : float
+        1σ of the satellite clock errors unknown to the receivers (s).
+    backup : str or None
+        Sensor that delivers fixes while this one has no relative fix.
+    """
+
+    name: str
+    period: float
+    almanac: Almanac
+    target_receiver: ReceiverModel = field(default_factory=ReceiverModel)
+    chaser_receiver: ReceiverModel = field(default_factory=ReceiverModel)
+    solver: RelativeGnssConfig = field(default_factory=RelativeGnssConfig)
+    satellite_clock_sigma: float = 1.0 / 299_792_458.0
+    backup: str | None = None
+    optical: bool = field(default=False, init=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.period) and self.period > 0):
+            raise ValueError(f"sensor {self.name!r}: period must be positive, got {self.period}")
+
+
+Sensor = PositionSensor | RgnssSensor
 
 
 @dataclass(frozen=True)
 class ApproachScenario:
-    """The seed-003 approach and station-keeping scenario (SI units).
+    """The approach and station-keeping scenario of Shi et al. (SI units).
 
     Attributes
     ----------
@@ -214,6 +298,11 @@ class ApproachScenario:
         Start of the evaluation interval (s): RMS errors use epochs ``t ≥ settle``.
     huber_threshold : float
         Huber constant (standard deviations).
+    inclination, raan, latitude_argument : float
+        The target's circular orbit in the week-start inertial frame of the GNSS almanac
+        (rad; argument of latitude at ``t = 0``); used by :class:`RgnssSensor` only.
+    gnss_start : float
+        GPS time of ``t = 0`` (s of the almanac week).
     """
 
     mean_motion: float
@@ -226,13 +315,17 @@ class ApproachScenario:
     thrust_noise: float
     control_frequency: float
     control_damping: float
-    sensors: dict[str, PositionSensor]
+    sensors: dict[str, Sensor]
     modes: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_MODES))
     mode: str = "non-cooperative"
     initial_sigma_position: float = 0.5
     initial_sigma_velocity: float = 0.01
     settle: float = 60.0
     huber_threshold: float = HUBER_THRESHOLD
+    inclination: float = math.radians(51.6)
+    raan: float = 0.0
+    latitude_argument: float = 0.0
+    gnss_start: float = 0.0
 
     def __post_init__(self) -> None:
         if self.mode not in self.modes:
@@ -241,6 +334,11 @@ class ApproachScenario:
             unknown = [n for n in names if n not in self.sensors]
             if unknown or not names:
                 raise ValueError(f"mode {mode!r} uses unknown or no sensors: {unknown}")
+        for name, sensor in self.sensors.items():
+            if sensor.backup is not None and sensor.backup not in self.sensors:
+                raise ValueError(f"sensor {name!r}: unknown backup {sensor.backup!r}")
+            if sensor.backup == name:
+                raise ValueError(f"sensor {name!r} cannot be its own backup")
         for attr in ("approach_duration", "duration", "imu_period", "control_frequency"):
             value = getattr(self, attr)
             if not (math.isfinite(value) and value > 0):
@@ -249,9 +347,13 @@ class ApproachScenario:
             raise ValueError(f"settle ({self.settle} s) must be shorter than duration")
 
     @property
-    def active_sensors(self) -> list[PositionSensor]:
-        """The sensors of the selected mode."""
-        return [self.sensors[name] for name in self.modes[self.mode]]
+    def active_sensors(self) -> list[Sensor]:
+        """The sensors of the selected mode, then their backups."""
+        names = list(self.modes[self.mode])
+        names += [
+            b for b in dict.fromkeys(self.sensors[n].backup for n in names) if b and b not in names
+        ]
+        return [self.sensors[name] for name in names]
 
 
 def reference_trajectory(
@@ -306,6 +408,16 @@ class ApproachResult:
         Per IMU epoch: time (s), estimation error (6), filter 1σ (6).
     truth : numpy.ndarray
         True states per IMU epoch (6).
+    modes : numpy.ndarray of str
+        Per IMU epoch, the navigation sources delivering fixes (``"lidar+rgnss-fixed"``,
+        ``"stereo"``, ``"imu-only"``, …): a source delivers while its last fix is at most
+        one of its periods old.
+    gnss_epochs, gnss_fixed, gnss_wrong : int
+        Relative GNSS epochs processed, epochs with a fixed solution, and fixed epochs whose
+        integers differ from the simulated truth.
+    time_to_first_fix : float or None
+        Seconds from the first relative GNSS epoch with a relative solution to the first
+        fixed one (``None`` without a fix or without relative GNSS).
     elapsed_s : float
     """
 
@@ -322,7 +434,28 @@ class ApproachResult:
     errors: np.ndarray
     sigmas: np.ndarray
     truth: np.ndarray
+    modes: np.ndarray
+    gnss_epochs: int
+    gnss_fixed: int
+    gnss_wrong: int
+    time_to_first_fix: float | None
     elapsed_s: float
+
+    @property
+    def ambiguity_fix_rate(self) -> float | None:
+        """Fraction of relative GNSS epochs with fixed ambiguities (``None`` without GNSS)."""
+        return self.gnss_fixed / self.gnss_epochs if self.gnss_epochs else None
+
+    @property
+    def wrong_fix_rate(self) -> float | None:
+        """Fraction of fixed epochs with wrong integers (``None`` without fixed epochs)."""
+        return self.gnss_wrong / self.gnss_fixed if self.gnss_fixed else None
+
+    @property
+    def mode_time_fractions(self) -> dict[str, float]:
+        """Fraction of the IMU epochs spent in each navigation sub-mode."""
+        counts = Counter(self.modes.tolist())
+        return {key: counts[key] / len(self.modes) for key in sorted(counts)}
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (the ``lightcurve relnav`` contract)."""
@@ -336,17 +469,81 @@ class ApproachResult:
             "fixes_downweighted": self.fixes_downweighted,
             "outliers_injected": self.outliers_injected,
             "outliers_downweighted": self.outliers_downweighted,
+            "ambiguity_fix_rate": self.ambiguity_fix_rate,
+            "wrong_fix_rate": self.wrong_fix_rate,
+            "time_to_first_fix_s": self.time_to_first_fix,
+            "gnss_epochs": self.gnss_epochs,
+            "mode_time_fractions": self.mode_time_fractions,
             "elapsed_s": self.elapsed_s,
         }
 
 
-def _fix_schedule(sensors: list[PositionSensor], duration: float) -> list[tuple[float, int]]:
+def _fix_schedule(sensors: list[Sensor], duration: float) -> list[tuple[float, int]]:
     """All ``(time, sensor index)`` fix events in ``(0, duration]``, time-ordered."""
     events = []
     for i, sensor in enumerate(sensors):
         count = math.floor(duration / sensor.period + 1e-9)
         events.extend((j * sensor.period, i) for j in range(1, count + 1))
     return sorted(events)
+
+
+def _sensor_rng(seed: int, name: str, purpose: int) -> np.random.Generator:
+    """An independent stream per sensor (and purpose: 0 noise, 1 outliers), keyed by name,
+    so a sensor sees the same noise in every mode that uses it."""
+    return np.random.default_rng([seed, zlib.crc32(name.encode()), purpose])
+
+
+class _RgnssChain:
+    """The simulated receivers and the relative GNSS solver of one :class:`RgnssSensor`."""
+
+    def __init__(self, sensor: RgnssSensor, sc: ApproachScenario, times, hill_positions, rng):
+        radius = (EARTH_MU / sc.mean_motion**2) ** (1.0 / 3.0)
+        target, velocity = circular_orbit(
+            radius, sc.inclination, sc.raan, sc.latitude_argument, times
+        )
+        self.rotation = hill_rotation(target, velocity)
+        chaser = target + np.einsum("kji,kj->ki", self.rotation, hill_positions)
+        shift = sc.gnss_start
+
+        def in_gps_time(model: ReceiverModel) -> ReceiverModel:
+            windows = tuple((a + shift, b + shift, m) for a, b, m in model.obstructions)
+            return dataclasses.replace(model, obstructions=windows)
+
+        constellation = Constellation(sensor.almanac)
+        self.obs = simulate_observations(
+            constellation,
+            shift + np.asarray(times),
+            np.stack([target, chaser]),
+            (in_gps_time(sensor.target_receiver), in_gps_time(sensor.chaser_receiver)),
+            rng,
+            satellite_clock_sigma=sensor.satellite_clock_sigma,
+        )
+        self.solver = RelativeGnssSolver(constellation, sensor.solver)
+        self.epoch = 0
+        self.first_solution: float | None = None
+        self.first_fix: float | None = None
+        self.fixed = self.wrong = 0
+
+    def fix(self, t: float) -> tuple[str, np.ndarray | None, np.ndarray | None]:
+        """Process the next epoch: ``(status, position, covariance)`` in the Hill frame."""
+        k, obs = self.epoch, self.obs
+        self.epoch += 1
+        sol = self.solver.process(
+            obs.times[k], obs.prn, obs.code[0, k], obs.phase[0, k], obs.code[1, k], obs.phase[1, k]
+        )
+        if sol.status == "none":
+            return "none", None, None
+        if self.first_solution is None:
+            self.first_solution = t
+        rot = self.rotation[k]
+        if sol.status == "fixed":
+            self.fixed += 1
+            amb = obs.truth["ambiguity"][:, k]
+            self.wrong += not fixed_ambiguities_correct(sol, obs.prn, amb[0], amb[1])
+            if self.first_fix is None:
+                self.first_fix = t
+            return "fixed", rot @ sol.position, rot @ sol.covariance @ rot.T
+        return "code", rot @ sol.code_position, rot @ sol.code_covariance @ rot.T
 
 
 def simulate_approach(
@@ -365,9 +562,17 @@ def simulate_approach(
     of the mode's sensors. A fraction ``outlier_rate`` of the optical fixes is replaced by
     gross errors of ``outlier_size`` metres in a random direction.
 
+    Relative GNSS sensors (:class:`RgnssSensor`) simulate both receivers along the true
+    trajectory (the target on its circular orbit, the chaser at the true Hill offset) and run
+    the relative GNSS solver epoch by epoch; its Hill-frame fixes use the target's true Hill
+    frame (the target's own orbit determination is not under test). Backup sensors deliver
+    fixes only while their primary is unavailable (in an outage, or without a relative GNSS
+    fix).
+
     Random numbers come from independent streams spawned from ``seed`` (truth, accelerometer,
-    sensor noise, outliers, initial estimate), so runs that differ only in the outliers or
-    the robust option share the same truth and noise.
+    initial estimate) and, per sensor name, for its noise and its outliers; so runs that
+    differ only in the outliers, the robust option or the mode share the same truth and the
+    same noise of each sensor (paired comparisons of modes).
 
     Parameters
     ----------
@@ -390,8 +595,8 @@ def simulate_approach(
     start_clock = time.perf_counter()
     sc = scenario
     n = sc.mean_motion
-    rng_truth, rng_imu, rng_fix, rng_outlier, rng_init = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5)
+    rng_truth, rng_imu, rng_init = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3)
     )
     dt = sc.imu_period
     steps = round(sc.duration / dt)
@@ -420,6 +625,29 @@ def simulate_approach(
         truth[k + 1] = phi @ s + gam @ accel[k]
     imu = accel + sc.accelerometer_noise * rng_imu.standard_normal((steps, 3))
 
+    # True positions at the fix events (the loop below assigns event e to IMU step k).
+    event_t = np.array([t for t, _ in events])
+    event_k = np.maximum(np.ceil((event_t - 1e-9) / dt).astype(int) - 1, 0)
+    tau = event_t - event_k * dt
+    true_fix = (
+        np.einsum("eij,ej->ei", cw_transition(n, tau), truth[event_k])
+        + np.einsum("eij,ej->ei", cw_input_matrix(n, tau), accel[event_k])
+    )[:, :3]
+    noise_rng = {s.name: _sensor_rng(seed, s.name, 0) for s in sensors}
+    outlier_rng = {s.name: _sensor_rng(seed, s.name, 1) for s in sensors}
+    chains = {}
+    for i, sensor in enumerate(sensors):
+        if isinstance(sensor, RgnssSensor):
+            mine = np.array([j for j, (_, idx) in enumerate(events) if idx == i], dtype=int)
+            chains[sensor.name] = _RgnssChain(
+                sensor, sc, event_t[mine], true_fix[mine], noise_rng[sensor.name]
+            )
+    primary_of = {s.backup: s.name for s in sensors if s.backup is not None}
+    # Availability of each sensor (as of its latest epoch) and its latest delivered fix.
+    available = {s.name: True for s in sensors}
+    delivered: dict[str, tuple[str, float]] = {}
+    period = {s.name: s.period for s in sensors}
+
     p0 = np.diag([sc.initial_sigma_position**2] * 3 + [sc.initial_sigma_velocity**2] * 3)
     x0 = truth[0] + rng_init.multivariate_normal(np.zeros(6), p0)
     kf = RelativeNavigationFilter(
@@ -428,6 +656,8 @@ def simulate_approach(
 
     estimates = np.zeros((steps + 1, 6))
     covariances = np.zeros((steps + 1, 6, 6))
+    modes = np.empty(steps + 1, dtype=object)
+    modes[0] = "imu-only"
     estimates[0], covariances[0] = kf.x, kf.P
     fixes = downweighted = injected = caught = 0
     e = 0
@@ -436,18 +666,29 @@ def simulate_approach(
         t_filter = t_k
         while e < len(events) and events[e][0] <= t_next + 1e-9:
             t_fix, i = events[e]
+            true_pos = true_fix[e]
             e += 1
             sensor = sensors[i]
+            if isinstance(sensor, RgnssSensor):
+                status, z, noise = chains[sensor.name].fix(t_fix)
+                available[sensor.name] = status != "none"
+                label = f"{sensor.name}-{status}"
+            else:
+                available[sensor.name] = sensor.available(t_fix)
+                z, noise, label = None, sensor.sigma, sensor.name
+                if available[sensor.name]:
+                    z = true_pos + sensor.sigma * noise_rng[sensor.name].standard_normal(3)
+            primary = primary_of.get(sensor.name)
+            if z is None or (primary is not None and available[primary]):
+                continue
+            is_outlier = sensor.optical and outlier_rng[sensor.name].random() < outlier_rate
+            if is_outlier:
+                direction = outlier_rng[sensor.name].standard_normal(3)
+                z = true_pos + outlier_size * direction / np.linalg.norm(direction)
             kf.predict(imu[k], t_fix - t_filter)
             t_filter = t_fix
-            tau = t_fix - t_k
-            true_pos = (cw_transition(n, tau) @ truth[k] + cw_input_matrix(n, tau) @ accel[k])[:3]
-            z = true_pos + sensor.sigma * rng_fix.standard_normal(3)
-            is_outlier = sensor.optical and rng_outlier.random() < outlier_rate
-            if is_outlier:
-                direction = rng_outlier.standard_normal(3)
-                z = true_pos + outlier_size * direction / np.linalg.norm(direction)
-            weights = kf.update(z, sensor.sigma)
+            weights = kf.update(z, noise)
+            delivered[sensor.name] = (label, t_fix)
             fixes += 1
             low = bool(np.any(weights < 1.0))
             downweighted += low
@@ -455,6 +696,12 @@ def simulate_approach(
             caught += is_outlier and low
         kf.predict(imu[k], t_next - t_filter)
         estimates[k + 1], covariances[k + 1] = kf.x, kf.P
+        live = sorted(
+            label
+            for name, (label, t_last) in delivered.items()
+            if t_next - t_last <= period[name] + 1e-9
+        )
+        modes[k + 1] = "+".join(live) if live else "imu-only"
 
     errors = estimates - truth
     sigmas = np.sqrt(np.diagonal(covariances, axis1=-2, axis2=-1))
@@ -476,5 +723,16 @@ def simulate_approach(
         errors=errors,
         sigmas=sigmas,
         truth=truth,
+        modes=modes.astype(str),
+        gnss_epochs=sum(c.epoch for c in chains.values()),
+        gnss_fixed=sum(c.fixed for c in chains.values()),
+        gnss_wrong=sum(c.wrong for c in chains.values()),
+        time_to_first_fix=_time_to_first_fix(chains.values()),
         elapsed_s=time.perf_counter() - start_clock,
     )
+
+
+def _time_to_first_fix(chains) -> float | None:
+    """Earliest first fix minus the first relative solution, over the GNSS sensors."""
+    times = [c.first_fix - c.first_solution for c in chains if c.first_fix is not None]
+    return min(times) if times else None

@@ -1,4 +1,5 @@
-"""Huber M-estimation for Kalman measurement updates (seed 003, "robust M-estimation").
+"""Huber M-estimation for Kalman measurement updates (the "robust M-estimation" of the multimodal
+relative navigation of Shi, Zhang, Li, Lang & Zheng).
 
 Gross errors of optical sensors (glints, mismatched features) would drag a least-squares
 update arbitrarily far. The robust update minimises, over the state ``x``,

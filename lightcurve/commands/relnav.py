@@ -1,11 +1,13 @@
-"""Relative navigation with IMU input and robust position fixes (seed 003).
+"""Multi-mode relative navigation with IMU input and robust position fixes.
 
 Simulates the scenario's closed-loop approach, runs the Kalman filter of the selected mode
-(cooperative: relative GNSS; non-cooperative: lidar; semi-cooperative: both) with Huber
-M-estimation or the plain update, optionally replacing a fraction of the optical fixes by
-gross errors, and writes ``OUT/summary.json`` (``position_rms_m``, ``velocity_rms_m_s``,
-``outliers_injected``, ``outliers_downweighted`` and more) and ``OUT/errors.csv`` (per IMU
-epoch: truth, estimation error and filter sigma). Format: ``docs/relnav.md``.
+(cooperative: relative GNSS; non-cooperative: lidar with the binocular backup;
+semi-cooperative: lidar and relative GNSS fused) with Huber M-estimation or the plain update,
+optionally replacing a fraction of the optical fixes by gross errors, and writes
+``OUT/summary.json`` (``position_rms_m``, ``velocity_rms_m_s``, ``ambiguity_fix_rate``,
+``wrong_fix_rate``, ``time_to_first_fix_s``, ``mode_time_fractions``, ``outliers_injected``,
+``outliers_downweighted`` and more) and ``OUT/errors.csv`` (per IMU epoch: truth,
+estimation error, filter sigma and the navigation sub-mode). Format: ``docs/relnav.md``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from lightcurve.scenarios.relnav import (
 NAME = "relnav"
 
 
-HELP = "multi-mode relative navigation: IMU + lidar/GNSS fixes, Huber M-estimation (seed 003)"
+HELP = "multi-mode relative navigation: IMU + lidar/stereo/relative GNSS, Huber M-estimation"
 
 
 ORDER = 63
@@ -48,7 +50,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--robust", choices=("huber", "none"), default="huber",
         help="measurement update: Huber M-estimation (default) or plain Kalman",
     )  # fmt: skip
-    parser.add_argument("--mode", help="override the scenario's mode (a name from [modes])")
+    parser.add_argument(
+        "--mode",
+        help="override the scenario's mode (a name from its [modes]: the shipped scenarios "
+        "define cooperative, non-cooperative and semi-cooperative)",
+    )
     parser.add_argument("--seed", type=int, help="override the scenario's random seed")
 
 
@@ -87,11 +93,20 @@ def run(args: argparse.Namespace) -> int:
         table[f"true_{axis}"] = result.truth[:, j]
         table[f"error_{axis}"] = result.errors[:, j]
         table[f"sigma_{axis}"] = result.sigmas[:, j]
+    table["mode"] = result.modes
     atomic_write_table(pd.DataFrame(table), args.out / "errors.csv")
+    gnss = ""
+    if result.gnss_epochs:
+        first = result.time_to_first_fix
+        gnss = (
+            f"; ambiguities fixed in {100 * result.ambiguity_fix_rate:.1f} % of "
+            f"{result.gnss_epochs} epochs, first fix after "
+            + ("never" if first is None else f"{first:.0f} s")
+        )
     print(
         f"{scenario.mode} ({', '.join(summary['sensors'])}), {args.robust}: position RMS "
         f"{result.position_rms:.4f} m, velocity RMS {result.velocity_rms:.5f} m/s; "
         f"outliers {result.outliers_injected} injected, {result.outliers_downweighted} "
-        f"down-weighted; NEES {result.nees_mean:.2f} (6 expected)"
+        f"down-weighted; NEES {result.nees_mean:.2f} (6 expected){gnss}"
     )
     return 0 if np.isfinite(result.position_rms) else 1

@@ -1,17 +1,25 @@
-"""Relative-navigation approach scenario files (seed 003).
+"""Relative-navigation approach scenario files (Shi et al., multimodal relative navigation).
 
-A TOML file becomes a :class:`filters.relnav.ApproachScenario`.
+A TOML file becomes a :class:`filters.relnav.ApproachScenario`; sensor tables of
+``kind = "rgnss"`` become :class:`filters.relnav.RgnssSensor` with their almanac read from
+the file they name (relative to the scenario file).
 
 The ``lightcurve relnav`` command is a thin layer over this module.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
+
+from filters.gnss.constellation import AlmanacError, parse_yuma
+from filters.gnss.measurements import ReceiverModel
+from filters.gnss.relative import RelativeGnssConfig
 from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
-from filters.relnav import ApproachScenario, PositionSensor
-from lightcurve.scenarios import ScenarioError, load_toml
+from filters.relnav import ApproachScenario, PositionSensor, RgnssSensor
+from lightcurve.scenarios import ScenarioError, TomlTable, load_toml
 
 _AXES = ("x", "y", "z", "vx", "vy", "vz")
 
@@ -46,11 +54,9 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
     sensors = {}
     for name in sensors_table.data:
         table = sensors_table.table(name)
-        sensors[name] = PositionSensor(
-            name,
-            table.number("sigma_m", positive=True),
-            table.number("period_s", positive=True),
-            table.boolean("optical", False),
+        kind = table.string("kind", "position", choices=("position", "rgnss"))
+        sensors[name] = (
+            _rgnss_sensor(name, table) if kind == "rgnss" else _position_sensor(name, table)
         )
         table.check_unknown()
     modes = {}
@@ -64,6 +70,8 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
     mode = root.string("mode", choices=modes)
 
     altitude = orbit.number("altitude_km", positive=True)
+    almanacs = [s.almanac for s in sensors.values() if isinstance(s, RgnssSensor)]
+    toa = float(almanacs[0].toa[0]) if almanacs else 0.0
     fields = {
         "mean_motion": mean_motion(EARTH_RADIUS + 1e3 * altitude, EARTH_MU),
         "start": traj.array("start_position_m", (3,)),
@@ -82,6 +90,12 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
         "initial_sigma_velocity": filt.number("initial_sigma_velocity_m_s", positive=True),
         "huber_threshold": filt.number("huber_threshold", positive=True),
         "settle": evaluation.number("settle_s", minimum=0.0),
+        "inclination": math.radians(
+            orbit.number("inclination_deg", 51.6, minimum=0.0, maximum=180.0)
+        ),
+        "raan": math.radians(orbit.number("raan_deg", 0.0)),
+        "latitude_argument": math.radians(orbit.number("latitude_argument_deg", 0.0)),
+        "gnss_start": toa + orbit.number("gnss_start_s", 0.0),
     }
     seed = evaluation.integer("seed", 0, minimum=0)
     for table in (root, orbit, traj, control, imu, filt, evaluation):
@@ -90,3 +104,71 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
         return ApproachScenario(**fields), seed
     except ValueError as exc:
         raise ScenarioError(f"{root.path}: {exc}") from None
+
+
+def _windows(table: TomlTable, field: str, width: int) -> tuple[tuple[float, ...], ...]:
+    """Optional list of time windows ``[t_start, t_end(, value)]`` (s)."""
+    if not table.has(field):
+        return ()
+    rows = table.array(field, (None, width))
+    if np.any(rows[:, 1] <= rows[:, 0]):
+        raise table.error(field, "each window needs t_start < t_end")
+    return tuple(tuple(float(v) for v in row) for row in rows)
+
+
+def _position_sensor(name: str, table: TomlTable) -> PositionSensor:
+    return PositionSensor(
+        name,
+        table.number("sigma_m", positive=True),
+        table.number("period_s", positive=True),
+        table.boolean("optical", False),
+        outages=_windows(table, "outages_s", 2),
+        backup=table.string("backup", None) if table.has("backup") else None,
+    )
+
+
+def _rgnss_sensor(name: str, table: TomlTable) -> RgnssSensor:
+    path = table.path.parent / table.string("almanac")
+    try:
+        almanac = parse_yuma(path.read_text(), source=str(path))
+    except OSError as exc:
+        raise table.error("almanac", f"cannot read {path}: {exc.strerror}") from None
+    except AlmanacError as exc:
+        raise table.error("almanac", str(exc)) from None
+    mask = table.number("elevation_mask_deg", minimum=-90.0, maximum=89.0)
+    common = {
+        "code_sigma": table.number("code_sigma_m", positive=True),
+        "phase_sigma": table.number("phase_sigma_m", positive=True),
+        "cycle_slip_probability": table.number(
+            "cycle_slip_probability", 0.0, minimum=0.0, maximum=1.0
+        ),
+        "cycle_slip_max": table.integer("cycle_slip_max", 10, minimum=1),
+        "multipath_code_sigma": table.number("multipath_code_m", 0.0, minimum=0.0),
+        "multipath_phase_sigma": table.number("multipath_phase_m", 0.0, minimum=0.0),
+        "multipath_time_constant": table.number("multipath_time_constant_s", 60.0, positive=True),
+    }
+
+    def receiver(prefix: str) -> ReceiverModel:
+        own = table.number(f"{prefix}_elevation_mask_deg", mask, minimum=-90.0, maximum=89.0)
+        windows = _windows(table, f"{prefix}_obstructions", 3)
+        return ReceiverModel(
+            elevation_mask=math.radians(own),
+            obstructions=tuple((a, b, math.radians(m)) for a, b, m in windows),
+            **common,
+        )
+
+    solver = RelativeGnssConfig(
+        code_sigma=common["code_sigma"],
+        phase_sigma=common["phase_sigma"],
+        ratio_threshold=table.number("ratio_threshold", minimum=1.0),
+        min_success_rate=table.number("min_success_rate", minimum=0.0, maximum=0.999999),
+    )
+    return RgnssSensor(
+        name,
+        table.number("period_s", positive=True),
+        almanac.healthy(),
+        target_receiver=receiver("target"),
+        chaser_receiver=receiver("chaser"),
+        solver=solver,
+        backup=table.string("backup", None) if table.has("backup") else None,
+    )

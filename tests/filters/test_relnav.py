@@ -1,6 +1,9 @@
-"""Seed-003 relative navigation: Huber IRLS update, the IMU-driven filter, modes, outliers."""
+"""Multi-mode relative navigation: Huber IRLS update, the IMU-driven filter, modes, outliers,
+relative GNSS from raw measurements and backup sensors."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,12 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
+from filters.gnss.constellation import parse_yuma
+from filters.gnss.measurements import ReceiverModel
 from filters.hill import cw_input_matrix, cw_transition, mean_motion
 from filters.kalman import joseph_update, kalman_gain
 from filters.relnav import (
     ApproachScenario,
     PositionSensor,
     RelativeNavigationFilter,
+    RgnssSensor,
     reference_trajectory,
     simulate_approach,
 )
@@ -209,3 +215,80 @@ def test_bad_scenarios_and_options():
         simulate_approach(approach(), outlier_rate=1.5)
     with pytest.raises(ValueError, match="sigma"):
         PositionSensor("lidar", 0.0, 1.0, True)
+
+
+# --------------------------------------------------------------------------- relative GNSS modes
+ALMANAC = Path(__file__).resolve().parents[2] / "data" / "gnss" / "gps_week147_yuma.alm"
+
+
+def rgnss_approach(mode: str, duration: float = 180.0, **rgnss) -> ApproachScenario:
+    """The approach with raw-measurement relative GNSS, a lidar and its stereo backup."""
+    sensor = RgnssSensor("rgnss", 1.0, parse_yuma(ALMANAC.read_text()), **rgnss)
+    sensors = {
+        "lidar": PositionSensor("lidar", 0.05, 1.0, True, backup="stereo",
+                                outages=((100.0, 130.0),)),
+        "stereo": PositionSensor("stereo", 0.10, 1.0, True),
+        "rgnss": sensor,
+    }  # fmt: skip
+    modes = {"cooperative": ("rgnss",), "non-cooperative": ("lidar",),
+             "semi-cooperative": ("lidar", "rgnss")}  # fmt: skip
+    start = sensor.almanac.toa[0] + 3600.0
+    return approach(sensors=sensors, modes=modes, mode=mode, duration=duration,
+                    approach_duration=0.6 * duration, gnss_start=start)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def paired_modes():
+    return {
+        (mode, seed): simulate_approach(rgnss_approach(mode), seed=seed)
+        for mode in ("cooperative", "non-cooperative", "semi-cooperative")
+        for seed in (0, 1)
+    }
+
+
+def test_cooperative_mode_fixes_ambiguities(paired_modes):
+    for seed in (0, 1):
+        coop = paired_modes[("cooperative", seed)]
+        s = coop.summary()
+        assert s["time_to_first_fix_s"] is not None and s["time_to_first_fix_s"] <= 60.0
+        assert s["ambiguity_fix_rate"] > 0.7 and s["wrong_fix_rate"] == 0.0
+        assert coop.gnss_epochs == 180
+        assert coop.position_rms < 0.01  # fixed carrier phase: mm level
+        assert set(s["mode_time_fractions"]) <= {"imu-only", "rgnss-code", "rgnss-fixed"}
+        assert s["mode_time_fractions"]["rgnss-fixed"] > 0.7
+        assert 3.0 < coop.nees_mean < 10.0
+
+
+def test_non_cooperative_backup_covers_the_lidar_outage(paired_modes):
+    non = paired_modes[("non-cooperative", 0)]
+    fractions = non.summary()["mode_time_fractions"]
+    assert fractions["stereo"] == pytest.approx(30.0 / 180.0, abs=0.01)
+    assert non.summary()["ambiguity_fix_rate"] is None
+    outage = (non.times > 101) & (non.times < 130)
+    assert set(non.modes[outage]) == {"stereo"}
+    assert non.fixes == 180  # every second a fix: lidar or, in the outage, stereo
+
+
+def test_semi_cooperative_is_no_worse_than_the_better_single_sensor(paired_modes):
+    for seed in (0, 1):
+        semi, coop, non = (
+            paired_modes[(m, seed)].position_rms
+            for m in ("semi-cooperative", "cooperative", "non-cooperative")
+        )
+        assert semi <= 1.02 * min(coop, non)
+
+
+def test_navigator_carries_on_with_fewer_than_five_common_satellites():
+    obstructed = ReceiverModel(obstructions=((135.0, 165.0, np.radians(75.0)),))
+    semi, coop = (
+        simulate_approach(rgnss_approach(mode, 220.0, chaser_receiver=obstructed), seed=2)
+        for mode in ("semi-cooperative", "cooperative")
+    )
+    window = (semi.times > 137) & (semi.times < 165)
+    assert set(semi.modes[window]) == {"lidar"}  # RGNSS reports no fix, the lidar carries on
+    assert set(coop.modes[window]) == {"imu-only"}
+    assert semi.modes[-1] == "lidar+rgnss-fixed" and coop.modes[-1] == "rgnss-fixed"
+    # With the lidar the error stays at its level; on the IMU alone it grows but is bounded.
+    assert np.max(np.linalg.norm(semi.errors[window, :3], axis=1)) < 0.1
+    assert np.max(np.linalg.norm(coop.errors[window, :3], axis=1)) < 1.0
+    assert semi.gnss_wrong == coop.gnss_wrong == 0

@@ -1,0 +1,719 @@
+"""Relative positioning of a chaser (rover) to a cooperative target (base) from raw GNSS data.
+
+The receiver functions of the multi-mode navigator's RGNSS module (Shi, Zhang, Li, Lang &
+Zheng, *Relative navigation architecture for aerospace vehicles based on multimodal
+measurement*, sec. 2.2.1.1): common-view selection (fewer than five common satellites → no
+relative fix), code double-difference positioning with the highest satellite as reference,
+ambiguity initialisation from carrier-phase double differences over several epochs (float
+least squares, then LAMBDA, accepted by the ratio test and the success-rate bound), and
+fixed carrier-phase positioning; plus relative velocity from time-differenced carrier phase
+and cycle-slip detection with re-initialisation.
+
+**Model** (epoch ``k``, ``m`` common satellites, reference ``q``; all in the week-start
+inertial frame of :mod:`filters.gnss.constellation`). With the baseline
+``b = x_rover − x_base`` linearised about ``b₀`` and ``A = −D U`` (``U`` the rover's unit
+lines of sight, ``D`` the double-difference operator):
+
+``y_P = DD P − DD ρ(b₀) = A δb + e_P``,   ``Q_P = Q_DD(σ_P²)``
+``y_Φ = λ DD φ − DD ρ(b₀) = A δb + λ a + e_Φ``,   ``Q_Φ = Q_DD(σ_Φ²)``
+
+with integer double-difference ambiguities ``a`` (cycles). The baseline changes every epoch
+(kinematic positioning), the ambiguities do not, so each epoch adds to the ambiguity normal
+equations its block with the epoch's baseline reduced out (Teunissen & Kleusberg 1998,
+ch. 8; Strang & Borre 1997, ch. 14):
+
+``N_bb = Aᵀ (W_P + W_Φ) A``,  ``N_ba = λ Aᵀ W_Φ``,  ``N_aa = λ² W_Φ``,
+``n_b = Aᵀ (W_P y_P + W_Φ y_Φ)``,  ``n_a = λ W_Φ y_Φ``,
+``N̄ += N_aa − N_ab N_bb⁻¹ N_ba``,  ``n̄ += n_a − N_ab N_bb⁻¹ n_b``  (``W = Q⁻¹``).
+
+The float ambiguities are ``â = N̄⁻¹ n̄`` with ``Q_â = N̄⁻¹``; LAMBDA gives the integer
+candidates (:mod:`filters.gnss.lambda_`), and the fix is accepted when the ratio test and the
+bootstrapped success rate pass. Satellites that rise later get new ambiguities, resolved
+conditionally on the ones already fixed; a change of reference satellite re-expresses the
+ambiguities (``a'_s = a_s − a_{q'}``, ``a'_q = −a_{q'}``) without losing them.
+
+**Cycle slips.** Between consecutive epochs the time-differenced double-differenced phase
+``Δy = A_k δb + λ Δa + ε`` is free of ambiguities unless a slip occurred; with ``m ≥ 5`` it
+has redundancy ``m − 4``. A global χ² test on its least-squares residuals detects slips, and
+the w-test of Baarda's data snooping identifies the slipping satellite (a slip on the
+reference shifts every double difference); its ambiguity is re-initialised, and all of them
+if the reference slipped or the redundancy runs out. The same least squares gives the relative
+velocity ``δb / Δt`` (mean over the interval). The fixed solution is validated each epoch by
+a χ² test of its phase residuals; a failure (a wrong fix or an undetected slip) re-initialises
+all ambiguities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2
+
+from filters.gnss.constellation import SPEED_OF_LIGHT, Constellation
+from filters.gnss.differencing import (
+    MIN_COMMON_SATELLITES,
+    double_difference_covariance,
+    double_differences,
+    reference_satellite,
+)
+from filters.gnss.lambda_ import lambda_method
+from filters.gnss.measurements import L1_WAVELENGTH, elevations, transmit_positions
+
+__all__ = [
+    "AmbiguityNormals",
+    "RelativeGnssConfig",
+    "RelativeGnssSolver",
+    "RelativeSolution",
+    "double_difference_geometry",
+    "epoch_normal_equations",
+    "fixed_ambiguities_correct",
+    "single_point_position",
+]
+
+
+@dataclass(frozen=True)
+class RelativeGnssConfig:
+    """Settings of :class:`RelativeGnssSolver` (SI units).
+
+    Attributes
+    ----------
+    code_sigma, phase_sigma : float
+        Assumed 1σ of undifferenced code and phase measurements (m); they set the weights.
+    wavelength : float
+        Carrier wavelength (m).
+    ratio_threshold : float
+        Ratio-test critical value ``c``: accept when ``‖â − ǎ₂‖² / ‖â − ǎ₁‖² ≥ c``.
+    min_success_rate : float
+        Least bootstrapped success rate of the decorrelated float ambiguities for a fix.
+    min_satellites : int
+        Fewest common satellites for a relative fix (five in the paper).
+    slip_false_alarm : float
+        False-alarm probability of the cycle-slip χ² test.
+    fix_false_alarm : float
+        False-alarm probability of the χ² test of the fixed solution's residuals.
+    """
+
+    code_sigma: float = 0.5
+    phase_sigma: float = 0.003
+    wavelength: float = L1_WAVELENGTH
+    ratio_threshold: float = 3.0
+    min_success_rate: float = 0.999
+    min_satellites: int = MIN_COMMON_SATELLITES
+    slip_false_alarm: float = 1e-4
+    fix_false_alarm: float = 1e-5
+
+    def __post_init__(self) -> None:
+        for name in ("code_sigma", "phase_sigma", "wavelength"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not self.ratio_threshold >= 1:
+            raise ValueError(f"ratio_threshold must be >= 1, got {self.ratio_threshold}")
+        if not 0 <= self.min_success_rate < 1:
+            raise ValueError(f"min_success_rate must be in [0, 1), got {self.min_success_rate}")
+        if self.min_satellites < 5:
+            raise ValueError(f"min_satellites must be >= 5, got {self.min_satellites}")
+        for name in ("slip_false_alarm", "fix_false_alarm"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class RelativeSolution:
+    """One epoch of :class:`RelativeGnssSolver` (inertial frame, SI units).
+
+    Attributes
+    ----------
+    time : float
+        GPS time (s).
+    status : {"none", "code", "float", "fixed"}
+        Best solution available: none (fewer than ``min_satellites`` in common view), code
+        double differences only, float carrier phase, fixed carrier phase.
+    satellites : int
+        Satellites in common view.
+    reference : int or None
+        PRN of the reference satellite.
+    position, covariance : (3,), (3, 3) numpy.ndarray
+        Baseline ``x_rover − x_base`` of the best solution and its covariance (NaN for none).
+    code_position, code_covariance : (3,), (3, 3) numpy.ndarray
+        Code-only double-difference solution (independent from epoch to epoch).
+    velocity, velocity_covariance : (3,), (3, 3) numpy.ndarray
+        Mean relative velocity since the previous epoch from time-differenced carrier phase
+        (NaN when unavailable).
+    fixed : int
+        Number of fixed double-difference ambiguities.
+    ratio, success_rate : float
+        Ratio and bootstrapped success rate of this epoch's LAMBDA call (NaN without one).
+    slips : tuple of int
+        PRNs whose ambiguities were re-initialised after a detected cycle slip.
+    ambiguities : dict[int, int]
+        Fixed double-difference ambiguities by PRN (reference: ``reference``).
+    message : str
+        Why there is no fix, or which resets happened.
+    """
+
+    time: float
+    status: str
+    satellites: int
+    reference: int | None
+    position: np.ndarray
+    covariance: np.ndarray
+    code_position: np.ndarray
+    code_covariance: np.ndarray
+    velocity: np.ndarray
+    velocity_covariance: np.ndarray
+    fixed: int = 0
+    ratio: float = float("nan")
+    success_rate: float = float("nan")
+    slips: tuple[int, ...] = ()
+    ambiguities: dict[int, int] = field(default_factory=dict)
+    message: str = ""
+
+
+@lru_cache(maxsize=512)
+def _chi2_limit(false_alarm: float, dof: int) -> float:
+    """Critical value of the χ² test with ``dof`` degrees of freedom."""
+    return float(chi2.ppf(1.0 - false_alarm, dof))
+
+
+_NAN3 = np.full(3, np.nan)
+_NAN33 = np.full((3, 3), np.nan)
+
+
+def single_point_position(
+    positions: Any,
+    velocities: Any,
+    code: Any,
+    initial: Any = None,
+    iterations: int = 10,
+) -> tuple[np.ndarray, float]:
+    """Absolute position and clock offset of a receiver from its pseudoranges (Gauss–Newton).
+
+    Parameters
+    ----------
+    positions, velocities : (m, 3) array_like
+        Satellite states at the reception time (m, m/s, inertial), ``m ≥ 4``.
+    code : (m,) array_like
+        Pseudoranges corrected for the broadcast satellite clocks (m).
+    initial : (3,) array_like, optional
+        Starting position (m); the geocentre by default.
+    iterations : int
+        Maximum iterations (stops when the update is below 1 mm).
+
+    Returns
+    -------
+    position : (3,) numpy.ndarray
+        Receiver position (m, week-start inertial frame).
+    clock : float
+        Receiver clock offset times ``c`` (m).
+    """
+    p = np.asarray(code, dtype=float)
+    if len(p) < 4:
+        raise ValueError(f"single point positioning needs 4 satellites, got {len(p)}")
+    x = np.zeros(4) if initial is None else np.append(np.asarray(initial, dtype=float), 0.0)
+    for _ in range(iterations):
+        sat, rho = transmit_positions(positions, velocities, x[:3])
+        g = np.hstack([-(sat - x[:3]) / rho[:, None], np.ones((len(p), 1))])
+        dx = np.linalg.lstsq(g, p - rho - x[3], rcond=None)[0]
+        x = x + dx
+        if np.linalg.norm(dx[:3]) < 1e-3:
+            break
+    return x[:3], float(x[3])
+
+
+def double_difference_geometry(
+    positions: Any,
+    velocities: Any,
+    reference: int,
+    base: Any,
+    baseline: Any,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Single-difference geometric ranges and their derivatives with respect to the baseline.
+
+    Parameters
+    ----------
+    positions, velocities : (m, 3) array_like
+        Satellite states at the reception time (m, m/s, inertial).
+    reference : int
+        Index of the reference satellite.
+    base : (3,) array_like
+        Base receiver position (m).
+    baseline : (3,) array_like
+        Linearisation point ``b₀`` of the baseline (m).
+
+    Returns
+    -------
+    single : (m,) numpy.ndarray
+        ``ρ_rover − ρ_base`` at ``b₀`` (m), with light time for each receiver.
+    jacobian : (m, 3) numpy.ndarray
+        ``∂ single / ∂ b``: the rover's negative unit lines of sight.
+    design : (m − 1, 3) numpy.ndarray
+        ``A = ∂ DD ρ / ∂ b``, the double differences of ``jacobian``.
+    """
+    base = np.asarray(base, dtype=float)
+    rover = base + np.asarray(baseline, dtype=float)
+    _, rho_b = transmit_positions(positions, velocities, base)
+    sat_r, rho_r = transmit_positions(positions, velocities, rover)
+    jacobian = -(sat_r - rover) / rho_r[:, None]
+    return rho_r - rho_b, jacobian, double_differences(jacobian.T, reference).T
+
+
+def epoch_normal_equations(
+    design: Any, y_code: Any, y_phase: Any, q_code: Any, q_phase: Any, wavelength: float
+) -> dict[str, np.ndarray]:
+    """One epoch's normal equations of ``[δb, a]`` and the ambiguity block with ``δb`` reduced.
+
+    Parameters
+    ----------
+    design : (n, 3) array_like
+        ``A``.
+    y_code, y_phase : (n,) array_like
+        Observed-minus-computed code and phase double differences (m).
+    q_code, q_phase : (n, n) array_like
+        Their covariances (m²).
+    wavelength : float
+        ``λ`` (m): the phase model is ``y_Φ = A δb + λ a``.
+
+    Returns
+    -------
+    dict
+        ``N_bb`` (3, 3), ``N_ba`` (3, n), ``N_aa`` (n, n), ``n_b`` (3,), ``n_a`` (n,),
+        ``reduced_normal`` (n, n) and ``reduced_rhs`` (n,).
+    """
+    a = np.asarray(design, dtype=float)
+    w_c = np.linalg.inv(np.asarray(q_code, dtype=float))
+    w_p = np.linalg.inv(np.asarray(q_phase, dtype=float))
+    y_c = np.asarray(y_code, dtype=float)
+    y_p = np.asarray(y_phase, dtype=float)
+    lam = float(wavelength)
+    n_bb = a.T @ (w_c + w_p) @ a
+    n_ba = lam * a.T @ w_p
+    n_aa = lam * lam * w_p
+    n_b = a.T @ (w_c @ y_c + w_p @ y_p)
+    n_a = lam * w_p @ y_p
+    reduce = np.linalg.solve(n_bb, np.column_stack([n_ba, n_b]))
+    return {
+        "N_bb": n_bb,
+        "N_ba": n_ba,
+        "N_aa": n_aa,
+        "n_b": n_b,
+        "n_a": n_a,
+        "reduced_normal": n_aa - n_ba.T @ reduce[:, :-1],
+        "reduced_rhs": n_a - n_ba.T @ reduce[:, -1],
+    }
+
+
+class AmbiguityNormals:
+    """Accumulated normal equations of double-difference ambiguities, keyed by PRN.
+
+    Parameters are ``a_s = N_s − N_q`` for the PRNs in :attr:`prns` and the reference PRN
+    :attr:`reference`; :attr:`fixed` holds the accepted integers (NaN where float).
+    """
+
+    def __init__(self, reference: int) -> None:
+        self.reference = int(reference)
+        self.prns: list[int] = []
+        self.normal = np.zeros((0, 0))
+        self.rhs = np.zeros(0)
+        self.fixed = np.zeros(0)
+        self.epochs = 0
+
+    def position(self, prns: Any) -> np.ndarray:
+        """Indices of ``prns`` in the parameter order."""
+        lookup = {p: i for i, p in enumerate(self.prns)}
+        return np.array([lookup[int(p)] for p in prns], dtype=int)
+
+    def add(self, prns: Any) -> None:
+        """Append new parameters without information."""
+        new = [int(p) for p in prns if int(p) not in self.prns and int(p) != self.reference]
+        if not new:
+            return
+        n, k = len(self.prns), len(new)
+        normal = np.zeros((n + k, n + k))
+        normal[:n, :n] = self.normal
+        self.normal = normal
+        self.rhs = np.concatenate([self.rhs, np.zeros(k)])
+        self.fixed = np.concatenate([self.fixed, np.full(k, np.nan)])
+        self.prns.extend(new)
+
+    def drop(self, prns: Any) -> None:
+        """Marginalise parameters out (their information about the others is kept)."""
+        gone = [int(p) for p in prns if int(p) in self.prns]
+        if not gone:
+            return
+        j = self.position(gone)
+        keep = np.setdiff1d(np.arange(len(self.prns)), j)
+        n_jj = self.normal[np.ix_(j, j)]
+        n_kj = self.normal[np.ix_(keep, j)]
+        inv = np.linalg.pinv(n_jj, hermitian=True)
+        self.normal = self.normal[np.ix_(keep, keep)] - n_kj @ inv @ n_kj.T
+        self.rhs = self.rhs[keep] - n_kj @ inv @ self.rhs[j]
+        self.fixed = self.fixed[keep]
+        self.prns = [self.prns[i] for i in keep]
+
+    def reset(self, prns: Any) -> None:
+        """Re-initialise parameters (after a cycle slip): marginalise, then add afresh."""
+        self.drop(prns)
+        self.add(prns)
+
+    def change_reference(self, new_reference: int) -> None:
+        """Re-express the parameters relative to ``new_reference`` (one of :attr:`prns`).
+
+        ``a'_s = a_s − a_{q'}`` and ``a'_q = −a_{q'}`` (the old reference takes the new one's
+        place): an integer, self-inverse map ``T``, so ``N' = T N T`` and ``n' = T n``.
+        """
+        j = self.position([new_reference])[0]
+        n = len(self.prns)
+        t = np.eye(n)
+        t[:, j] -= 1.0
+        t[j, j] = -1.0
+        self.normal = t.T @ self.normal @ t
+        self.rhs = t.T @ self.rhs
+        self.fixed = t @ self.fixed
+        self.prns[j] = self.reference
+        self.reference = int(new_reference)
+
+    def accumulate(self, reduced_normal: Any, reduced_rhs: Any, prns: Any) -> None:
+        """Add one epoch's reduced normal equations for the parameters ``prns``."""
+        j = self.position(prns)
+        self.normal[np.ix_(j, j)] += reduced_normal
+        self.rhs[j] += reduced_rhs
+        self.epochs += 1
+
+    def float_solution(self, free: Any, conditional: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Float ambiguities of the ``free`` parameters (indices).
+
+        Parameters
+        ----------
+        free : (k,) array_like of int
+        conditional : bool
+            Condition on the fixed parameters ``X`` outside ``free`` (``N_FF⁻¹ (n_F −
+            N_FX a_X)``); otherwise the others are free too and the marginal float solution
+            ``(N⁻¹ n)_F`` with covariance ``(N⁻¹)_FF`` is returned.
+
+        Returns
+        -------
+        a : (k,) numpy.ndarray
+        q : (k, k) numpy.ndarray
+        """
+        free = np.asarray(free, dtype=int)
+        if not conditional:
+            q_all = np.linalg.inv(self.normal)
+            q = q_all[np.ix_(free, free)]
+            return (q_all @ self.rhs)[free], 0.5 * (q + q.T)
+        fixed = np.setdiff1d(np.flatnonzero(np.isfinite(self.fixed)), free)
+        n_ff = self.normal[np.ix_(free, free)]
+        rhs = self.rhs[free] - self.normal[np.ix_(free, fixed)] @ self.fixed[fixed]
+        q = np.linalg.inv(n_ff)
+        return q @ rhs, 0.5 * (q + q.T)
+
+
+class RelativeGnssSolver:
+    """Epoch-by-epoch relative GNSS of a rover (chaser) with respect to a base (target).
+
+    Parameters
+    ----------
+    constellation : Constellation
+        Broadcast orbits and clocks (the same almanac the receivers use).
+    config : RelativeGnssConfig, optional
+
+    Examples
+    --------
+    >>> solver = RelativeGnssSolver(constellation)
+    >>> for k, t in enumerate(obs.times):
+    ...     sol = solver.process(t, obs.prn, obs.code[0, k], obs.phase[0, k],
+    ...                          obs.code[1, k], obs.phase[1, k])
+    """
+
+    def __init__(self, constellation: Constellation, config: RelativeGnssConfig | None = None):
+        self.constellation = constellation
+        self.config = config or RelativeGnssConfig()
+        self._index = {int(p): i for i, p in enumerate(constellation.prn)}
+        self.reset()
+        self._base: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """Forget all ambiguities and the previous epoch (re-initialisation)."""
+        self.ambiguities: AmbiguityNormals | None = None
+        self._previous: dict[str, Any] | None = None
+
+    # ------------------------------------------------------------------ helpers
+    def _weights(self, m: int, ref: int) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        ones = np.ones(m)
+        return (
+            double_difference_covariance(c.code_sigma**2 * ones, c.code_sigma**2 * ones, ref),
+            double_difference_covariance(c.phase_sigma**2 * ones, c.phase_sigma**2 * ones, ref),
+        )
+
+    def _code_solution(self, sat, vel, ref, base, sd_code, baseline, q_code):
+        """Iterated least squares of code double differences for the baseline."""
+        w = np.linalg.inv(q_code)
+        for _ in range(4):
+            geo, _, design = double_difference_geometry(sat, vel, ref, base, baseline)
+            y = double_differences(sd_code - geo, ref)
+            cov = np.linalg.inv(design.T @ w @ design)
+            step = cov @ design.T @ w @ y
+            baseline = baseline + step
+            if np.linalg.norm(step) < 1e-4:
+                break
+        return baseline, cov
+
+    def _detect_slips(self, y, design, q) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """χ² test of time-differenced DD phase residuals with w-test identification.
+
+        Returns the indices of the rows (or ``-1`` for the reference) judged to have slipped,
+        the least-squares baseline change and its covariance from the remaining rows.
+        """
+        rows = np.arange(len(y))
+        flagged: list[int] = []
+        while True:
+            a, qq, yy = design[rows], q[np.ix_(rows, rows)], y[rows]
+            w = np.linalg.inv(qq)
+            cov = np.linalg.inv(a.T @ w @ a)
+            delta = cov @ a.T @ w @ yy
+            r = yy - a @ delta
+            dof = len(rows) - 3
+            if dof < 1:
+                return [*flagged, -1], delta, cov
+            if r @ w @ r <= _chi2_limit(self.config.slip_false_alarm, dof):
+                return flagged, delta, cov
+            q_r = qq - a @ cov @ a.T
+            wr = w @ r
+            candidates = np.vstack([np.eye(len(rows)), -np.ones(len(rows))])
+            num = candidates @ wr
+            den = np.sqrt(np.einsum("ij,jk,ik->i", candidates, w @ q_r @ w, candidates))
+            best = int(np.argmax(np.abs(num) / np.maximum(den, 1e-300)))
+            if best == len(rows):
+                return [*flagged, -1], delta, cov
+            flagged.append(int(rows[best]))
+            rows = np.delete(rows, best)
+
+    def _none(self, t: float, m: int, message: str) -> RelativeSolution:
+        return RelativeSolution(
+            t, "none", m, None, _NAN3, _NAN33, _NAN3, _NAN33, _NAN3, _NAN33, message=message
+        )
+
+    # ------------------------------------------------------------------ main entry
+    def process(
+        self,
+        t: float,
+        prn: Any,
+        base_code: Any,
+        base_phase: Any,
+        rover_code: Any,
+        rover_phase: Any,
+    ) -> RelativeSolution:
+        """Process one epoch of raw measurements of both receivers.
+
+        Parameters
+        ----------
+        t : float
+            GPS time (s).
+        prn : (n,) array_like of int
+            Satellites of the measurement arrays.
+        base_code, rover_code : (n,) array_like
+            Pseudoranges (m); NaN where not tracked.
+        base_phase, rover_phase : (n,) array_like
+            Carrier phases (cycles); NaN where not tracked.
+
+        Returns
+        -------
+        RelativeSolution
+        """
+        cfg = self.config
+        lam = cfg.wavelength
+        prn = np.asarray(prn, dtype=int)
+        bc, bp = np.asarray(base_code, float), np.asarray(base_phase, float)
+        rc, rp = np.asarray(rover_code, float), np.asarray(rover_phase, float)
+        known = np.array([p in self._index for p in prn])
+        base_ok = known & np.isfinite(bc)
+        common = base_ok & np.isfinite(bp) & np.isfinite(rc) & np.isfinite(rp)
+        m = int(common.sum())
+        if m < cfg.min_satellites:
+            self.reset()
+            return self._none(
+                t, m, f"{m} satellites in common view, fewer than {cfg.min_satellites}: "
+                "no relative fix"
+            )  # fmt: skip
+
+        # Satellite states at the epoch; base position by single point positioning.
+        all_index = np.array([self._index[p] for p in prn[base_ok]])
+        sat_all, vel_all = self.constellation.states(t, all_index)
+        corrected = bc[base_ok] + SPEED_OF_LIGHT * self.constellation.clock_offsets(t, all_index)
+        base, _ = single_point_position(sat_all, vel_all, corrected, initial=self._base)
+        self._base = base
+        prns = prn[common]
+        in_common = common[base_ok]
+        sat, vel = sat_all[in_common], vel_all[in_common]
+        el = elevations(base, sat)
+
+        amb = self.ambiguities
+        previous = self._previous
+        lookup = {int(p): i for i, p in enumerate(prns)}
+        messages: list[str] = []
+        if amb is not None:
+            # Keep the reference while it is in view; otherwise the highest satellite whose
+            # ambiguity is already a parameter (so the others can be re-expressed).
+            if amb.reference in lookup:
+                ref = lookup[amb.reference]
+            else:
+                candidates = np.array([int(p) in amb.prns for p in prns])
+                if candidates.any():
+                    ref = reference_satellite(el, allowed=candidates)
+                    amb.drop([p for p in amb.prns if p not in lookup and p != int(prns[ref])])
+                    amb.change_reference(int(prns[ref]))
+                    messages.append(f"reference changed to PRN {int(prns[ref])}")
+                else:
+                    amb = None
+                    messages.append("reference lost: ambiguities re-initialised")
+        if amb is None:
+            ref = reference_satellite(el)
+            amb = AmbiguityNormals(int(prns[ref]))
+            previous = None
+        amb.drop([p for p in amb.prns if p not in lookup])
+        others = np.delete(prns, ref)
+        amb.add(others)
+
+        sd_code = rc[common] - bc[common]
+        sd_phase = lam * (rp[common] - bp[common])
+        q_code, q_phase = self._weights(m, ref)
+
+        # Code-only double-difference solution (also the linearisation point).
+        start = previous["baseline"] if previous is not None else np.zeros(3)
+        b_code, c_code = self._code_solution(sat, vel, ref, base, sd_code, start, q_code)
+        b0 = previous["baseline"] if previous is not None else b_code
+        geo, jacobian, design = double_difference_geometry(sat, vel, ref, base, b0)
+
+        # Cycle slips and velocity from time-differenced carrier phase.
+        velocity, velocity_cov, slipped = _NAN3, _NAN33, []
+        if previous is not None:
+            both = np.array([int(p) in previous["sd_phase"] for p in others])
+            if both.sum() >= 4:
+                rows = np.flatnonzero(both)
+                keep = np.append(np.delete(np.arange(m), ref)[rows], ref)
+                keep_prn = prns[keep]
+                d_sd = np.array(
+                    [
+                        sd_phase[lookup[p]] - previous["sd_phase"][p]
+                        - (geo[lookup[p]] - previous["geometry"][p])
+                        for p in keep_prn
+                    ]
+                )  # fmt: skip
+                y_td = double_differences(d_sd, len(keep) - 1)
+                q_td = 2.0 * q_phase[np.ix_(rows, rows)]
+                flagged, delta, cov = self._detect_slips(y_td, design[rows], q_td)
+                dt = t - previous["time"]
+                if -1 in flagged:
+                    amb = AmbiguityNormals(int(prns[ref]))
+                    amb.add(others)
+                    slipped = [int(p) for p in prns]
+                    messages.append(
+                        "cycle slip on the reference or not identifiable: all ambiguities "
+                        "re-initialised"
+                    )
+                else:
+                    slipped = [int(others[rows[i]]) for i in flagged]
+                    amb.reset(slipped)
+                    velocity, velocity_cov = delta / dt, cov / dt**2
+                    if slipped:
+                        messages.append(f"cycle slips on PRN {slipped}: re-initialised")
+        self.ambiguities = amb
+
+        # Accumulate the epoch's ambiguity normal equations.
+        y_code = double_differences(sd_code - geo, ref)
+        y_phase = double_differences(sd_phase - geo, ref)
+        ne = epoch_normal_equations(design, y_code, y_phase, q_code, q_phase, lam)
+        amb.accumulate(ne["reduced_normal"], ne["reduced_rhs"], others)
+        order = amb.position(others)  # parameter index of each double difference
+
+        # Fix what is not fixed yet (conditionally on what is).
+        ratio = success = float("nan")
+        free = np.flatnonzero(np.isnan(amb.fixed))
+        if free.size:
+            a_float, q_float = amb.float_solution(free)
+            estimate = lambda_method(a_float, q_float)
+            ratio, success = estimate.ratio, estimate.success_rate
+            if estimate.accepted(cfg.ratio_threshold, cfg.min_success_rate):
+                amb.fixed[free] = estimate.best
+
+        # Best solution of the epoch.
+        fixed_rows = np.flatnonzero(np.isfinite(amb.fixed[order]))
+        status, position, covariance = "code", b_code, c_code
+        if fixed_rows.size >= cfg.min_satellites - 1:
+            a_fix = amb.fixed[order][fixed_rows]
+            f = fixed_rows
+            w_c = np.linalg.inv(q_code)
+            w_f = np.linalg.inv(q_phase[np.ix_(f, f)])
+            y_f = y_phase[f] - lam * a_fix
+            normal = design.T @ w_c @ design + design[f].T @ w_f @ design[f]
+            cov = np.linalg.inv(normal)
+            delta = cov @ (design.T @ w_c @ y_code + design[f].T @ w_f @ y_f)
+            r_c, r_f = y_code - design @ delta, y_f - design[f] @ delta
+            statistic = r_c @ w_c @ r_c + r_f @ w_f @ r_f
+            dof = len(y_code) + len(f) - 3
+            if statistic <= _chi2_limit(cfg.fix_false_alarm, dof):
+                status, position, covariance = "fixed", b0 + delta, cov
+            else:
+                amb = AmbiguityNormals(int(prns[ref]))
+                amb.add(others)
+                self.ambiguities = amb
+                messages.append("fixed solution failed its residual test: re-initialised")
+        if status == "code" and amb.epochs > 0:
+            a_hat, q_hat = amb.float_solution(np.arange(len(amb.prns)), conditional=False)
+            a_hat, q_hat = a_hat[order], q_hat[np.ix_(order, order)]
+            nbb_inv = np.linalg.inv(ne["N_bb"])
+            gain = nbb_inv @ ne["N_ba"]
+            status, position = "float", b0 + nbb_inv @ ne["n_b"] - gain @ a_hat
+            covariance = nbb_inv + gain @ q_hat @ gain.T
+
+        # Geometry at the epoch's estimate, for the next epoch's time differences.
+        geometry = geo + jacobian @ (position - b0)
+        self._previous = {
+            "time": t,
+            "baseline": position,
+            "sd_phase": dict(zip(prns.tolist(), sd_phase, strict=True)),
+            "geometry": dict(zip(prns.tolist(), geometry, strict=True)),
+        }
+        fixed_map = {
+            int(p): int(a) for p, a in zip(amb.prns, amb.fixed, strict=True) if np.isfinite(a)
+        }
+        return RelativeSolution(
+            time=t,
+            status=status,
+            satellites=m,
+            reference=int(prns[ref]),
+            position=position,
+            covariance=covariance,
+            code_position=b_code,
+            code_covariance=c_code,
+            velocity=velocity,
+            velocity_covariance=velocity_cov,
+            fixed=len(fixed_map),
+            ratio=ratio,
+            success_rate=success,
+            slips=tuple(slipped),
+            ambiguities=fixed_map,
+            message="; ".join(messages),
+        )
+
+
+def fixed_ambiguities_correct(
+    solution: RelativeSolution, prn: Any, base_ambiguity: Any, rover_ambiguity: Any
+) -> bool:
+    """Whether a solution's fixed double-difference integers equal the simulated truth.
+
+    Parameters
+    ----------
+    solution : RelativeSolution
+    prn : (n,) array_like of int
+        Satellites of the truth arrays.
+    base_ambiguity, rover_ambiguity : (n,) array_like of int
+        True undifferenced ambiguities ``N`` of the epoch.
+    """
+    where = {int(p): i for i, p in enumerate(np.asarray(prn))}
+    sd = np.asarray(rover_ambiguity, dtype=np.int64) - np.asarray(base_ambiguity, dtype=np.int64)
+    q = where[solution.reference]
+    return all(sd[where[p]] - sd[q] == a for p, a in solution.ambiguities.items())
