@@ -13,10 +13,18 @@ and ``V`` (their product approximates the fraction that is both): 1 for a convex
 (``"table"``), or ray cast for every epoch (``"exact"``, the reference). A fully dark epoch
 has zero flux and infinite magnitude.
 
-The computation runs in torch over any leading batch shape (particles × epochs) in
-cache-sized chunks; numpy inputs give numpy outputs. Every BRDF is evaluated through its
-cosine form (``n·L``, ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``,
-``H·v``), one call per material on a contiguous block of facets.
+Two code paths evaluate the same formula over any leading batch shape (particles ×
+epochs); numpy inputs give numpy outputs, torch inputs torch outputs:
+
+* the fused kernels of :mod:`lightcurve.kernels` (numba, compiled once per machine and
+  cached): CPU computations whose result needs no gradient, i.e. every simulation, filter
+  and particle update. One pass over the facets per row, no (rows × facets) arrays, rows
+  spread over ``torch.get_num_threads()`` threads;
+* torch (the *eager* path): when an input requires grad (the global search and the
+  photometric planner differentiate the flux with respect to the attitude), on CUDA, and for
+  :meth:`Renderer.facet_flux`. Every BRDF is evaluated through its cosine form (``n·L``,
+  ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``, ``H·v``), one call per
+  material on a contiguous block of facets, in cache-sized chunks of rows.
 """
 
 from __future__ import annotations
@@ -47,6 +55,8 @@ _CHUNK_ELEMENTS = 65536
 # Every Renderer compiles the same kernel code with its own constants; allow that many
 # specialisations before dynamo falls back to eager (its default limit is 8).
 _RECOMPILE_LIMIT = 64
+# Rows × facets of one shadow-factor array on the fused path (16 MiB in float64).
+_SHADOW_ELEMENTS = 1 << 21
 
 
 def flux_to_magnitude(flux: Any) -> Any:
@@ -176,6 +186,7 @@ class Renderer:
         self._areas = torch.as_tensor(compiled.areas[order], dtype=dtype, device=self.device)
         self._static_shapes = compile
         self._kernel = _compiled_or_eager(self._facet_terms) if compile else self._facet_terms
+        self._fused: Any = None  # lightcurve.kernels.FusedFlux, built on first use
 
     # ------------------------------------------------------------------ public API
     def flux(self, q: Any, sun: Any, observer: Any) -> Any:
@@ -217,6 +228,8 @@ class Renderer:
 
     # ------------------------------------------------------------------ internals
     def _evaluate(self, q: Any, sun: Any, observer: Any, per_facet: bool) -> Any:
+        if not per_facet and self._fusable(q, sun, observer):
+            return self._evaluate_fused(q, sun, observer)
         as_numpy = not isinstance(q, torch.Tensor)
         out_device = None if as_numpy else q.device
         q, sun, observer = (
@@ -257,6 +270,76 @@ class Renderer:
             return result.detach().cpu().numpy()
         return result.to(out_device)
 
+    def _fusable(self, *inputs: Any) -> bool:
+        """Whether the fused CPU kernels may evaluate these inputs (no gradient, no GPU)."""
+        if self.device.type != "cpu":
+            return False
+        grad = torch.is_grad_enabled()
+        return not any(
+            isinstance(v, torch.Tensor) and (v.device.type != "cpu" or (grad and v.requires_grad))
+            for v in inputs
+        )
+
+    def _fused_flux(self) -> Any:
+        if self._fused is None:
+            from lightcurve.kernels import FusedFlux, block_parameters, facet_table
+
+            compiled, order = self.compiled, self._order
+            dtype = np.float32 if self.dtype == torch.float32 else np.float64
+            table = facet_table(
+                compiled.normals[order], compiled.areas[order], compiled.tangents[order], dtype
+            )
+            blocks = []
+            for block in self._blocks:
+                model = block.model
+                kind, row = block_parameters(model.name, model.params, model.anisotropic)
+                blocks.append((kind, block.start, block.stop, row))
+            self._fused = FusedFlux(table, blocks, dtype)
+        return self._fused
+
+    def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
+        """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
+        as_numpy = not isinstance(q, torch.Tensor)
+        q, sun, observer = (_float64_array(v) for v in (q, sun, observer))
+        for name, value, size in (("q", q, 4), ("sun", sun, 3), ("observer", observer, 3)):
+            if value.ndim == 0 or value.shape[-1] != size:
+                raise ValueError(f"{name} must have shape (..., {size}), got {value.shape}")
+        shape = np.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
+        q, sun, observer = (
+            np.require(
+                np.broadcast_to(v, (*shape, v.shape[-1])).reshape(-1, v.shape[-1]), None, "CW"
+            )
+            for v in (q, sun, observer)
+        )
+        fused = self._fused_flux()
+        light, view, scale = fused.geometry(
+            q, sun, observer, AU_M if self.scale_sun_distance else 0.0
+        )
+        if self.shadows == "none":
+            sums = fused.sums(light, view)
+        else:
+            step = max(1, _SHADOW_ELEMENTS // self.n_facets)
+            sums = (
+                np.concatenate(
+                    [
+                        fused.sums(
+                            light[start : start + step],
+                            view[start : start + step],
+                            self._shadow_factor(
+                                light[start : start + step], view[start : start + step]
+                            ),
+                        )
+                        for start in range(0, len(light), step)
+                    ]
+                )
+                if len(light)
+                else np.zeros(0, dtype=fused.dtype)
+            )
+        flux = (sums * scale).astype(fused.dtype, copy=False).reshape(shape)
+        if as_numpy:
+            return flux
+        return torch.from_numpy(flux)
+
     def _facet_terms(self, light: torch.Tensor, view: torch.Tensor, shadow: Any) -> torch.Tensor:
         """``ρ A (n·L)(n·V) · shadow`` for every facet of a chunk, shape (chunk, K)."""
         k = self.n_facets
@@ -285,21 +368,27 @@ class Renderer:
         terms = rho * self._areas * torch.clamp(nl, min=0.0) * torch.clamp(nv, min=0.0)
         return terms if shadow is None else terms * shadow
 
-    def _shadow_factor(self, light: torch.Tensor, view: torch.Tensor) -> Any:
-        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies."""
+    def _shadow_factor(self, light: Any, view: Any) -> Any:
+        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies.
+
+        ``light``/``view`` are torch tensors (eager path) or numpy arrays (fused path); the
+        factor is of the same kind and dtype, in the renderer's (material-sorted) facet order.
+        """
         if self.shadows == "none":
             return None
+        tensors = isinstance(light, torch.Tensor)
+        directions = torch.cat([light, view]) if tensors else np.concatenate([light, view])
         if self.shadows == "table":
-            table = self.compiled.visibility
-            both = table.interpolate(torch.cat([light, view], dim=0))
+            both = self.compiled.visibility.interpolate(directions)
         else:
-            directions = torch.cat([light, view], dim=0).detach().cpu().numpy().astype(float)
-            both = torch.as_tensor(
-                visible_fraction(self.compiled, directions), dtype=self.dtype, device=self.device
-            )
+            rays = directions.detach().cpu().numpy() if tensors else directions
+            both = visible_fraction(self.compiled, rays.astype(float))
+            if tensors:
+                both = torch.as_tensor(both, dtype=self.dtype, device=self.device)
         both = both[:, self._order]
         n = light.shape[0]
-        return both[:n] * both[n:]
+        factor = both[:n] * both[n:]
+        return factor if tensors else np.ascontiguousarray(factor, dtype=light.dtype)
 
 
 def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
@@ -321,6 +410,13 @@ def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., tor
             return kernel(*args)
 
     return run
+
+
+def _float64_array(value: Any) -> np.ndarray:
+    """A float64 numpy array of ``value`` (numpy, sequence or CPU tensor)."""
+    if isinstance(value, torch.Tensor):
+        value = value.detach().numpy()
+    return np.asarray(value, dtype=np.float64)
 
 
 def lambert_sphere_flux(albedo: float, radius: float, distance: float, alpha: Any) -> Any:
