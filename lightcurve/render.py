@@ -45,11 +45,19 @@ from shapes import CompiledFacets, FacetModel, visible_fraction
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["SHADOW_MODES", "SUN_MAGNITUDE", "Renderer", "flux_to_magnitude", "magnitude_to_flux"]
+__all__ = [
+    "BACKENDS",
+    "SHADOW_MODES",
+    "SUN_MAGNITUDE",
+    "Renderer",
+    "flux_to_magnitude",
+    "magnitude_to_flux",
+]
 
 #: Apparent magnitude of the Sun at 1 AU (V band, DESIGN.md).
 SUN_MAGNITUDE = -26.74
 SHADOW_MODES = ("auto", "none", "table", "exact")
+BACKENDS = ("auto", "torch")
 # Facet-rows per chunk by default: 65536 elements = 256 KiB in float32, cache-sized.
 _CHUNK_ELEMENTS = 65536
 # Every Renderer compiles the same kernel code with its own constants; allow that many
@@ -114,11 +122,16 @@ class Renderer:
     scale_sun_distance : bool
         Scale the Sun's flux by ``(1 AU / r_sun)²`` (True: physically right for any object).
     compile : bool
-        Compile the per-chunk kernel with ``torch.compile`` (inductor). About 3–4× faster
-        on CPU once compiled, but the first call pays 10–30 s of compilation, so it pays off
-        for particle filters and long batches only. Falls back to eager execution (with a
-        logged warning) where compilation is unavailable. Raises dynamo's recompile limit
-        to 64, since each renderer specialises the kernel to its own facets and materials.
+        Compile the torch path's per-chunk kernel with ``torch.compile`` (inductor). It only
+        serves the calls that take the torch path (gradients, CUDA, :meth:`facet_flux`); the
+        fused kernels are faster on the CPU without it. The first call pays 10–30 s of
+        compilation; falls back to eager execution (with a logged warning) where compilation
+        is unavailable. Raises dynamo's recompile limit to 64, since each renderer
+        specialises the kernel to its own facets and materials.
+    backend : {"auto", "torch"}
+        ``"auto"``: the fused numba kernels for CPU calls that need no gradient, torch
+        otherwise (see the module docstring); ``"torch"``: always torch (the reference path
+        of the tests and the baseline of ``benchmarks/render.py``).
 
     Examples
     --------
@@ -136,8 +149,11 @@ class Renderer:
         chunk_size: int | None = None,
         scale_sun_distance: bool = True,
         compile: bool = False,
+        backend: str = "auto",
     ) -> None:
         compiled = shape.compiled() if isinstance(shape, FacetModel) else shape
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         if shadows not in SHADOW_MODES:
             raise ValueError(f"shadows must be one of {', '.join(SHADOW_MODES)}, got {shadows!r}")
         if shadows == "auto":
@@ -149,6 +165,7 @@ class Renderer:
             raise ValueError("shadows='table' needs a shape with a visibility table")
         self.compiled = compiled
         self.shadows = shadows
+        self.backend = backend
         self.dtype = dtype
         self.device = torch.device(
             device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
@@ -272,13 +289,15 @@ class Renderer:
 
     def _fusable(self, *inputs: Any) -> bool:
         """Whether the fused CPU kernels may evaluate these inputs (no gradient, no GPU)."""
-        if self.device.type != "cpu":
+        if self.backend != "auto" or self.device.type != "cpu":
             return False
         grad = torch.is_grad_enabled()
-        return not any(
-            isinstance(v, torch.Tensor) and (v.device.type != "cpu" or (grad and v.requires_grad))
-            for v in inputs
-        )
+        for v in inputs:
+            if isinstance(v, torch.Tensor) and (
+                v.device.type != "cpu" or (grad and v.requires_grad)
+            ):
+                return False
+        return True
 
     def _fused_flux(self) -> Any:
         if self._fused is None:
@@ -305,12 +324,7 @@ class Renderer:
             if value.ndim == 0 or value.shape[-1] != size:
                 raise ValueError(f"{name} must have shape (..., {size}), got {value.shape}")
         shape = np.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
-        q, sun, observer = (
-            np.require(
-                np.broadcast_to(v, (*shape, v.shape[-1])).reshape(-1, v.shape[-1]), None, "CW"
-            )
-            for v in (q, sun, observer)
-        )
+        q, sun, observer = (_rows(v, shape) for v in (q, sun, observer))
         fused = self._fused_flux()
         light, view, scale = fused.geometry(
             q, sun, observer, AU_M if self.scale_sun_distance else 0.0
@@ -417,6 +431,16 @@ def _float64_array(value: Any) -> np.ndarray:
     if isinstance(value, torch.Tensor):
         value = value.detach().numpy()
     return np.asarray(value, dtype=np.float64)
+
+
+def _rows(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` broadcast to ``(*shape, n)`` as a writable C-ordered ``(rows, n)`` array."""
+    if value.shape[:-1] != shape:
+        value = np.broadcast_to(value, (*shape, value.shape[-1]))
+    value = value.reshape(-1, value.shape[-1])
+    if not (value.flags.c_contiguous and value.flags.writeable):
+        value = value.copy()  # one kernel specialisation: C order, writable
+    return value
 
 
 def lambert_sphere_flux(albedo: float, radius: float, distance: float, alpha: Any) -> Any:
