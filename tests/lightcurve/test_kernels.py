@@ -23,7 +23,7 @@ MATERIALS = {
 }
 
 
-@njit
+@njit(cache=True)
 def _log_exp(x, y, log_out, exp_out):
     for i in range(x.size):
         log_out[i] = elementary.log(x[i])
