@@ -29,19 +29,26 @@ epochs); numpy inputs give numpy outputs, torch inputs torch outputs:
 
 from __future__ import annotations
 
+import ast
+import importlib.util
 import logging
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from functools import cache, cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 import brdf
 from filters.attitude import rotate
 from lightcurve.geometry import AU_M
 from shapes import CompiledFacets, FacetModel, visible_fraction
+
+if TYPE_CHECKING:
+    import torch
 
 logger = logging.getLogger(__name__)
 
@@ -80,8 +87,8 @@ def flux_to_magnitude(flux: Any) -> Any:
     array
         Apparent magnitude.
     """
-    if isinstance(flux, torch.Tensor):
-        return SUN_MAGNITUDE - 2.5 * torch.log10(flux)
+    if _is_tensor(flux):
+        return SUN_MAGNITUDE - 2.5 * flux.log10()
     with np.errstate(divide="ignore"):
         return SUN_MAGNITUDE - 2.5 * np.log10(flux)
 
@@ -111,10 +118,13 @@ class Renderer:
         Self-shadowing mode. ``"auto"``: ``"none"`` when no facet can ever be shadowed
         (convex bodies), else ``"table"`` when the shape carries a visibility table, else
         ``"exact"``.
-    dtype : torch.dtype
-        Computation precision (float64 by default; float32 is ~2× faster).
+    dtype : torch.dtype, optional
+        Computation precision (``torch.float64`` by default; ``torch.float32`` is up to 2×
+        faster).
     device : str or torch.device, optional
-        Where to compute (default: CUDA when available, else CPU).
+        Where the torch path computes (default: CUDA when torch sees a GPU, else the CPU, where
+        the fused kernels serve the calls without gradient). torch itself is imported only
+        when a call needs it, so numpy-only work (a simulation) never pays for it.
     chunk_size : int, optional
         Rows (epochs × particles) per chunk. By default ``65536 // facets`` (at least 16):
         the (chunk × facets) work arrays then stay in the L2 cache, which measured 1.3–1.6×
@@ -144,7 +154,7 @@ class Renderer:
         self,
         shape: FacetModel | CompiledFacets,
         shadows: str = "auto",
-        dtype: torch.dtype = torch.float64,
+        dtype: torch.dtype | None = None,
         device: str | torch.device | None = None,
         chunk_size: int | None = None,
         scale_sun_distance: bool = True,
@@ -166,10 +176,8 @@ class Renderer:
         self.compiled = compiled
         self.shadows = shadows
         self.backend = backend
-        self.dtype = dtype
-        self.device = torch.device(
-            device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
-        )
+        self._dtype = dtype
+        self._device = device
         self.chunk_size = (
             max(16, _CHUNK_ELEMENTS // len(compiled.areas))
             if chunk_size is None
@@ -194,16 +202,59 @@ class Renderer:
             self._blocks.append(_Block(int(rows[0]), int(rows[-1]) + 1, model))
         self.n_facets = len(order)
         # The frame matrix stacks normals, tangents and bitangents: one GEMM per direction.
-        frame = (
+        self._frame_rows = (
             np.concatenate([normals, tangents, bitangents], axis=0)
             if self._anisotropic
             else normals
         )
-        self._frame = torch.as_tensor(frame, dtype=dtype, device=self.device)
-        self._areas = torch.as_tensor(compiled.areas[order], dtype=dtype, device=self.device)
         self._static_shapes = compile
         self._kernel = _compiled_or_eager(self._facet_terms) if compile else self._facet_terms
         self._fused: Any = None  # lightcurve.kernels.FusedFlux, built on first use
+
+    @cached_property
+    def dtype(self) -> torch.dtype:
+        """Computation precision (a torch dtype)."""
+        import torch
+
+        return torch.float64 if self._dtype is None else self._dtype
+
+    @cached_property
+    def device(self) -> torch.device:
+        """Device of the torch path (imports torch)."""
+        import torch
+
+        if self._device is not None:
+            return torch.device(self._device)
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+    @cached_property
+    def _on_cpu(self) -> bool:
+        """Whether the renderer computes on the CPU, decided without importing torch when
+        torch is not loaded and its build has no GPU support."""
+        if self._device is not None:
+            return str(self._device).split(":")[0] == "cpu"
+        if "torch" not in sys.modules and not _torch_build_has_gpu():
+            return True
+        return self.device.type == "cpu"
+
+    @cached_property
+    def _numpy_dtype(self) -> np.dtype:
+        """The compute dtype as numpy's (float32 or float64)."""
+        name = "float64" if self._dtype is None else str(self._dtype).rsplit(".", 1)[-1]
+        return np.dtype(np.float32 if name == "float32" else np.float64)
+
+    @cached_property
+    def _frame(self) -> torch.Tensor:
+        import torch
+
+        return torch.as_tensor(self._frame_rows, dtype=self.dtype, device=self.device)
+
+    @cached_property
+    def _areas(self) -> torch.Tensor:
+        import torch
+
+        areas = self.compiled.areas[self._order]
+        return torch.as_tensor(areas, dtype=self.dtype, device=self.device)
 
     # ------------------------------------------------------------------ public API
     def flux(self, q: Any, sun: Any, observer: Any) -> Any:
@@ -247,6 +298,8 @@ class Renderer:
     def _evaluate(self, q: Any, sun: Any, observer: Any, per_facet: bool) -> Any:
         if not per_facet and self._fusable(q, sun, observer):
             return self._evaluate_fused(q, sun, observer)
+        import torch
+
         as_numpy = not isinstance(q, torch.Tensor)
         out_device = None if as_numpy else q.device
         q, sun, observer = (
@@ -289,8 +342,11 @@ class Renderer:
 
     def _fusable(self, *inputs: Any) -> bool:
         """Whether the fused CPU kernels may evaluate these inputs (no gradient, no GPU)."""
-        if self.backend != "auto" or self.device.type != "cpu":
+        if self.backend != "auto" or not self._on_cpu:
             return False
+        torch = sys.modules.get("torch")
+        if torch is None:
+            return True  # no tensor can be among the inputs
         grad = torch.is_grad_enabled()
         for v in inputs:
             if isinstance(v, torch.Tensor) and (
@@ -304,7 +360,7 @@ class Renderer:
             from lightcurve.kernels import FusedFlux, block_parameters, facet_table
 
             compiled, order = self.compiled, self._order
-            dtype = np.float32 if self.dtype == torch.float32 else np.float64
+            dtype = self._numpy_dtype
             table = facet_table(
                 compiled.normals[order], compiled.areas[order], compiled.tangents[order], dtype
             )
@@ -318,7 +374,7 @@ class Renderer:
 
     def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
         """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
-        as_numpy = not isinstance(q, torch.Tensor)
+        as_numpy = not _is_tensor(q)
         q, sun, observer = (_float64_array(v) for v in (q, sun, observer))
         for name, value, size in (("q", q, 4), ("sun", sun, 3), ("observer", observer, 3)):
             if value.ndim == 0 or value.shape[-1] != size:
@@ -352,6 +408,8 @@ class Renderer:
         flux = (sums * scale).astype(fused.dtype, copy=False).reshape(shape)
         if as_numpy:
             return flux
+        import torch
+
         return torch.from_numpy(flux)
 
     def _facet_terms(self, light: torch.Tensor, view: torch.Tensor, shadow: Any) -> torch.Tensor:
@@ -363,9 +421,11 @@ class Renderer:
         lv = (light * view).sum(dim=-1, keepdim=True)
         hu = hv = None
         if self._anisotropic:
-            half_norm = torch.sqrt(torch.clamp(2.0 + 2.0 * lv, min=1e-30))
+            half_norm = (2.0 + 2.0 * lv).clamp(min=1e-30).sqrt()
             hu = (proj_l[:, k : 2 * k] + proj_v[:, k : 2 * k]) / half_norm
             hv = (proj_l[:, 2 * k :] + proj_v[:, 2 * k :]) / half_norm
+        import torch
+
         rho = torch.cat(
             [
                 block.model.from_cosines(
@@ -379,7 +439,7 @@ class Renderer:
             ],
             dim=-1,
         )
-        terms = rho * self._areas * torch.clamp(nl, min=0.0) * torch.clamp(nv, min=0.0)
+        terms = rho * self._areas * nl.clamp(min=0.0) * nv.clamp(min=0.0)
         return terms if shadow is None else terms * shadow
 
     def _shadow_factor(self, light: Any, view: Any) -> Any:
@@ -390,8 +450,13 @@ class Renderer:
         """
         if self.shadows == "none":
             return None
-        tensors = isinstance(light, torch.Tensor)
-        directions = torch.cat([light, view]) if tensors else np.concatenate([light, view])
+        tensors = _is_tensor(light)
+        if tensors:
+            import torch
+
+            directions = torch.cat([light, view])
+        else:
+            directions = np.concatenate([light, view])
         if self.shadows == "table":
             both = self.compiled.visibility.interpolate(directions)
         else:
@@ -407,6 +472,8 @@ class Renderer:
 
 def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
     """``torch.compile(kernel)``, replaced by ``kernel`` itself if compilation fails."""
+    import torch
+
     config = torch._dynamo.config
     if hasattr(config, "recompile_limit"):
         config.recompile_limit = max(config.recompile_limit, _RECOMPILE_LIMIT)
@@ -426,9 +493,33 @@ def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., tor
     return run
 
 
+def _is_tensor(value: Any) -> bool:
+    """Whether ``value`` is a torch tensor (False without importing torch when it is not
+    loaded: no tensor can exist then)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(value, torch.Tensor)
+
+
+@cache
+def _torch_build_has_gpu() -> bool:
+    """Whether the installed torch is a CUDA/ROCm build, read from ``torch/version.py``
+    without importing torch (True when that cannot be told: then torch is asked)."""
+    try:
+        spec = importlib.util.find_spec("torch")
+        source = Path(next(iter(spec.submodule_search_locations)), "version.py")
+        values = {}
+        for node in ast.parse(source.read_text(encoding="utf-8")).body:
+            target = getattr(node, "target", None) or (getattr(node, "targets", None) or [None])[0]
+            if isinstance(target, ast.Name) and target.id in ("cuda", "hip"):
+                values[target.id] = ast.literal_eval(node.value)
+        return set(values) != {"cuda", "hip"} or any(v is not None for v in values.values())
+    except (AttributeError, OSError, StopIteration, TypeError, ValueError, SyntaxError):
+        return True
+
+
 def _float64_array(value: Any) -> np.ndarray:
     """A float64 numpy array of ``value`` (numpy, sequence or CPU tensor)."""
-    if isinstance(value, torch.Tensor):
+    if _is_tensor(value):
         value = value.detach().numpy()
     return np.asarray(value, dtype=np.float64)
 

@@ -3,7 +3,8 @@
 The numba kernels release the GIL, so disjoint row ranges run in parallel on a pool of
 plain Python threads. Idle workers block on a queue (no spinning), so a process that
 shares the cores with others burns no CPU between calls. The thread count follows
-``torch.get_num_threads()`` unless :func:`set_num_threads` fixes it; work below
+``torch.get_num_threads()`` (without torch loaded: ``OMP_NUM_THREADS``, else the CPUs the
+process may use) unless :func:`set_num_threads` fixes it; work below
 :data:`MIN_ELEMENTS_PER_THREAD` facet-rows per thread runs on the calling thread, where a
 small call (a UKF's sigma points) pays no hand-over.
 """
@@ -11,6 +12,8 @@ small call (a UKF's sigma points) pays no hand-over.
 from __future__ import annotations
 
 import atexit
+import os
+import sys
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -30,12 +33,17 @@ def set_num_threads(count: int | None) -> None:
 
 
 def get_num_threads() -> int:
-    """The kernels' thread count: :func:`set_num_threads`, else torch's intra-op threads."""
+    """The kernels' thread count: :func:`set_num_threads`, else torch's intra-op threads
+    (``OMP_NUM_THREADS`` or the process's CPUs when torch is not loaded)."""
     if _state["threads"] is not None:
         return int(_state["threads"])
-    import torch
-
-    return max(1, torch.get_num_threads())
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        return max(1, torch.get_num_threads())
+    try:  # torch's own default without importing it: OMP_NUM_THREADS, else the usable CPUs
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:
