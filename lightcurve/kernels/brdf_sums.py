@@ -23,8 +23,9 @@ body-frame unit vectors to the Sun and the observer, ``facets`` the (10, K) tabl
 ``start``/``stop`` the block, ``p`` its parameter row (:func:`lightcurve.kernels.block_parameters`),
 ``shadow`` the (R, K) shadow factor, or one (1, K) row for every row (ones when there is none:
 a multiplication by a cached 1 costs less than a branch, which would keep the loop from being
-vectorised). Arithmetic is in the dtype of ``facets``. Each function is compiled (and cached)
-when a shape first uses its BRDF.
+vectorised). Arithmetic is in the dtype of ``facets``. The BRDFs with specular lobes skip
+tiles of facets none of which is both lit and seen (the renderer orders facets by
+direction). Each function is compiled (and cached) when a shape first uses its BRDF.
 """
 
 from __future__ import annotations
@@ -65,6 +66,11 @@ _JIT = {
     "cache": True,
 }
 _COSINE_FLOOR = 1e-6  # brdf._geometry.COSINE_FLOOR
+# Facets per tile of the BRDFs with specular lobes: tiles with no facet both lit and seen are
+# skipped. The renderer orders facets by direction within a material, so at a random geometry
+# 40 % of a convex body's tiles are evaluated (25 % of its facets are lit and seen). Lambert
+# and Lommel–Seeliger cost less per facet than the test and loop over every facet.
+_TILE = 16
 _SUM_SQUARED_FLOOR = 1e-12  # brdf._geometry._SUM_SQUARED_FLOOR
 
 
@@ -73,6 +79,18 @@ def _row(light, view, shadow, r):
     """The unit vectors of row ``r`` and its shadow factors (one shared row when broadcast)."""
     factor = shadow[r] if shadow.shape[0] == light.shape[0] else shadow[0]
     return light[r, 0], light[r, 1], light[r, 2], view[r, 0], view[r, 1], view[r, 2], factor
+
+
+@njit(**_JIT)
+def _tile_visible(facets, first, last, lx, ly, lz, vx, vy, vz):
+    """Whether any facet of ``first:last`` is both lit and seen (``n·L > 0``, ``n·V > 0``)."""
+    zero = facets.dtype.type(0.0)
+    count = 0
+    for i in range(first, last):
+        nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
+        nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
+        count += 1 if (nl > zero and nv > zero) else 0
+    return count > 0
 
 
 @njit(**_JIT)
@@ -107,15 +125,19 @@ def phong_rows(light, view, facets, start, stop, p, shadow, out):
         diffuse, specular, exponent = p[0], p[1], p[2]
         at_zero = one if exponent == zero else zero  # 0⁰ = 1, as numpy and torch
         total = zero
-        for i in range(start, stop):
-            nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
-            nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
-            mirror = t(2.0) * nl * nv - lv
-            lit = mirror > zero
-            lobe = exp(exponent * log(mirror if lit else one))
-            rho = diffuse + specular * (lobe if lit else at_zero)
-            term = rho * facets[3, i] * nl * nv * factor[i]
-            total += term if (nl > zero and nv > zero) else zero
+        for first in range(start, stop, _TILE):
+            last = min(first + _TILE, stop)
+            if not _tile_visible(facets, first, last, lx, ly, lz, vx, vy, vz):
+                continue
+            for i in range(first, last):
+                nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
+                nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
+                mirror = t(2.0) * nl * nv - lv
+                lit = mirror > zero
+                lobe = exp(exponent * log(mirror if lit else one))
+                rho = diffuse + specular * (lobe if lit else at_zero)
+                term = rho * facets[3, i] * nl * nv * factor[i]
+                total += term if (nl > zero and nv > zero) else zero
         out[r] += total
 
 
@@ -132,22 +154,26 @@ def cook_torrance_rows(light, view, facets, start, stop, p, shadow, out):
         diffuse, specular, inv_m2 = p[0], p[1] * fresnel, p[2]
         two_over_vh = t(2.0) / vh
         total = zero
-        for i in range(start, stop):
-            nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
-            nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
-            nh = (nl + nv) * inv_length
-            nh = floor if nh < floor else (one if nh > one else nh)
-            inv_nh2 = one / (nh * nh)
-            distribution = exp((one - inv_nh2) * inv_m2) * (inv_nh2 * inv_nh2)
-            low = nl if nl < nv else nv
-            low = floor if low < floor else low
-            high = nl if nl > nv else nv
-            high = floor if high < floor else high
-            masking = nh * low * two_over_vh
-            masking = one if masking > one else masking
-            rho = diffuse + specular * (distribution * masking / (low * high))
-            term = rho * facets[3, i] * nl * nv * factor[i]
-            total += term if (nl > zero and nv > zero) else zero
+        for first in range(start, stop, _TILE):
+            last = min(first + _TILE, stop)
+            if not _tile_visible(facets, first, last, lx, ly, lz, vx, vy, vz):
+                continue
+            for i in range(first, last):
+                nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
+                nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
+                nh = (nl + nv) * inv_length
+                nh = floor if nh < floor else (one if nh > one else nh)
+                inv_nh2 = one / (nh * nh)
+                distribution = exp((one - inv_nh2) * inv_m2) * (inv_nh2 * inv_nh2)
+                low = nl if nl < nv else nv
+                low = floor if low < floor else low
+                high = nl if nl > nv else nv
+                high = floor if high < floor else high
+                masking = nh * low * two_over_vh
+                masking = one if masking > one else masking
+                rho = diffuse + specular * (distribution * masking / (low * high))
+                term = rho * facets[3, i] * nl * nv * factor[i]
+                total += term if (nl > zero and nv > zero) else zero
         out[r] += total
 
 
@@ -163,23 +189,27 @@ def ashikhmin_shirley_rows(light, view, facets, start, stop, p, shadow, out):
         fresnel = p[2] + (one - p[2]) * (q2 * q2 * q)
         diffuse, specular, exponent = p[0], p[1] * fresnel / vh, p[3]
         total = zero
-        for i in range(start, stop):
-            nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
-            nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
-            nh = (nl + nv) * inv_length
-            nh = floor if nh < floor else (one if nh > one else nh)
-            high = nl if nl > nv else nv
-            high = floor if high < floor else high
-            a = one - half * nl
-            a2 = a * a
-            b = one - half * nv
-            b2 = b * b
-            rho = (
-                diffuse * ((one - a2 * a2 * a) * (one - b2 * b2 * b))
-                + specular * exp(exponent * log(nh)) / high
-            )
-            term = rho * facets[3, i] * nl * nv * factor[i]
-            total += term if (nl > zero and nv > zero) else zero
+        for first in range(start, stop, _TILE):
+            last = min(first + _TILE, stop)
+            if not _tile_visible(facets, first, last, lx, ly, lz, vx, vy, vz):
+                continue
+            for i in range(first, last):
+                nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
+                nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
+                nh = (nl + nv) * inv_length
+                nh = floor if nh < floor else (one if nh > one else nh)
+                high = nl if nl > nv else nv
+                high = floor if high < floor else high
+                a = one - half * nl
+                a2 = a * a
+                b = one - half * nv
+                b2 = b * b
+                rho = (
+                    diffuse * ((one - a2 * a2 * a) * (one - b2 * b2 * b))
+                    + specular * exp(exponent * log(nh)) / high
+                )
+                term = rho * facets[3, i] * nl * nv * factor[i]
+                total += term if (nl > zero and nv > zero) else zero
         out[r] += total
 
 
@@ -199,30 +229,34 @@ def ashikhmin_shirley_anisotropic_rows(light, view, facets, start, stop, p, shad
         fresnel = p[2] + (one - p[2]) * (q2 * q2 * q)
         diffuse, specular, exp_u, exp_v = p[0], p[1] * fresnel / vh, p[3], p[4]
         total = zero
-        for i in range(start, stop):
-            nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
-            nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
-            hu = (facets[4, i] * hx + facets[5, i] * hy + facets[6, i] * hz) * inv_half_norm
-            hv = (facets[7, i] * hx + facets[8, i] * hy + facets[9, i] * hz) * inv_half_norm
-            hu2 = hu * hu
-            hv2 = hv * hv
-            weight = hu2 + hv2
-            weight = t(1e-30) if weight < t(1e-30) else weight
-            exponent = (exp_u * hu2 + exp_v * hv2) / weight
-            nh = (nl + nv) * inv_length
-            nh = floor if nh < floor else (one if nh > one else nh)
-            high = nl if nl > nv else nv
-            high = floor if high < floor else high
-            a = one - half * nl
-            a2 = a * a
-            b = one - half * nv
-            b2 = b * b
-            rho = (
-                diffuse * ((one - a2 * a2 * a) * (one - b2 * b2 * b))
-                + specular * exp(exponent * log(nh)) / high
-            )
-            term = rho * facets[3, i] * nl * nv * factor[i]
-            total += term if (nl > zero and nv > zero) else zero
+        for first in range(start, stop, _TILE):
+            last = min(first + _TILE, stop)
+            if not _tile_visible(facets, first, last, lx, ly, lz, vx, vy, vz):
+                continue
+            for i in range(first, last):
+                nl = facets[0, i] * lx + facets[1, i] * ly + facets[2, i] * lz
+                nv = facets[0, i] * vx + facets[1, i] * vy + facets[2, i] * vz
+                hu = (facets[4, i] * hx + facets[5, i] * hy + facets[6, i] * hz) * inv_half_norm
+                hv = (facets[7, i] * hx + facets[8, i] * hy + facets[9, i] * hz) * inv_half_norm
+                hu2 = hu * hu
+                hv2 = hv * hv
+                weight = hu2 + hv2
+                weight = t(1e-30) if weight < t(1e-30) else weight
+                exponent = (exp_u * hu2 + exp_v * hv2) / weight
+                nh = (nl + nv) * inv_length
+                nh = floor if nh < floor else (one if nh > one else nh)
+                high = nl if nl > nv else nv
+                high = floor if high < floor else high
+                a = one - half * nl
+                a2 = a * a
+                b = one - half * nv
+                b2 = b * b
+                rho = (
+                    diffuse * ((one - a2 * a2 * a) * (one - b2 * b2 * b))
+                    + specular * exp(exponent * log(nh)) / high
+                )
+                term = rho * facets[3, i] * nl * nv * factor[i]
+                total += term if (nl > zero and nv > zero) else zero
         out[r] += total
 
 
