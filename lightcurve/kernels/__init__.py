@@ -117,6 +117,16 @@ class FusedFlux:
         self.stops = np.array([b[2] for b in blocks], dtype=np.int64)
         self.params = np.array([b[3] for b in blocks], dtype=self.dtype).reshape(-1, 6)
         self._no_shadow = np.ones((1, self.facets.shape[1]), dtype=self.dtype)
+        self._row_kernels = [
+            (ROW_KERNELS[kind], start, stop, row)
+            for kind, start, stop, row in zip(
+                self.kinds.tolist(),
+                self.starts.tolist(),
+                self.stops.tolist(),
+                self.params,
+                strict=True,
+            )
+        ]
 
     @property
     def n_facets(self) -> int:
@@ -151,16 +161,7 @@ class FusedFlux:
         """
         out = np.zeros(light.shape[0], dtype=self.dtype)
         factor = self._no_shadow if shadow is None else shadow
-        blocks = [
-            (ROW_KERNELS[kind], start, stop, row)
-            for kind, start, stop, row in zip(
-                self.kinds.tolist(),
-                self.starts.tolist(),
-                self.stops.tolist(),
-                self.params,
-                strict=True,
-            )
-        ]
+        blocks = self._row_kernels
 
         def kernel(start: int, stop: int) -> None:
             rows = slice(start, stop)
