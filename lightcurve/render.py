@@ -389,24 +389,13 @@ class Renderer:
         )
         if self.shadows == "none":
             sums = fused.sums(light, view)
-        else:
+        else:  # shadow factors for blocks of rows, to bound the (rows × facets) array
+            sums = np.zeros(len(light), dtype=fused.dtype)
             step = max(1, _SHADOW_ELEMENTS // self.n_facets)
-            sums = (
-                np.concatenate(
-                    [
-                        fused.sums(
-                            light[start : start + step],
-                            view[start : start + step],
-                            self._shadow_factor(
-                                light[start : start + step], view[start : start + step]
-                            ),
-                        )
-                        for start in range(0, len(light), step)
-                    ]
-                )
-                if len(light)
-                else np.zeros(0, dtype=fused.dtype)
-            )
+            for start in range(0, len(light), step):
+                rows = slice(start, start + step)
+                factor = self._shadow_factor(light[rows], view[rows])
+                sums[rows] = fused.sums(light[rows], view[rows], factor)
         flux = (sums * scale).astype(fused.dtype, copy=False).reshape(shape)
         if as_numpy:
             return flux
