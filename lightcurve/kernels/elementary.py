@@ -90,7 +90,7 @@ def _log64(x):
         )
     )
     half_f2 = t(0.5) * f * f
-    kf = t(k)
+    kf = t(np.int32(k))  # via int32: AVX2 converts int32, not int64, vectors to double
     return kf * t(6.93147180369123816490e-01) - (
         (half_f2 - (s * (half_f2 + t1 + t2) + kf * t(1.90821492927058770002e-10))) - f
     )
@@ -138,7 +138,8 @@ def _exp64(x):
         )
     )
     y = t(1.0) - ((r * c) / (c - t(2.0)) - r)
-    scale = _double_from_bits((np.int64(kf) + np.int64(1023)) << np.int64(52))
+    # 2^k by its bits, through int32 (AVX2 has no double → int64 vector conversion).
+    scale = _double_from_bits((np.int64(np.int32(kf)) + np.int64(1023)) << np.int64(52))
     return t(0.0) if under else y * scale
 
 
