@@ -1,17 +1,31 @@
-"""Renderer throughput: facet-epochs per second per BRDF, float32/float64, eager/compiled.
+"""Renderer throughput: the fused kernels against the torch path and the numpy reference.
 
-Workload: 10³ facets (an icosphere with random-ish normals) × 10⁴ epochs, one material, for
-each BRDF; and the particle-filter shape, 10⁴ attitudes × one epoch. The baseline is the
-straightforward numpy implementation of the same formula (``lightcurve.reference``:
-explicit vectors, whole (epochs × facets) matrices). Prints JSON.
+One run measures, each with its baseline and the ratio (best of ``--repeats``):
 
-    python -m benchmarks.render [--epochs 10000] [--no-compile]
+* every BRDF on 1280 facets (an icosphere) × 10⁴ epochs, float32 and float64: the default
+  (fused numba) path vs the torch path (``backend="torch"``, what every call used before)
+  and the straightforward numpy reference (``lightcurve.reference``); each BRDF's rate
+  relative to Lambert's;
+* Ashikhmin–Shirley on 20 480 facets and in the particle-filter shape (10⁴ attitudes × one
+  epoch), relative to the 1280-facet rate;
+* the one-off cost of the first call in a fresh process (kernel compilation, or loading it
+  from numba's on-disk cache) measured in a subprocess;
+* the cost of a small call (13 sigma points × one epoch of a 24-facet cylinder, the UKF's),
+  µs per call, fused vs torch;
+* table vs exact shadowing accuracy, and batch vs single calls.
+
+Prints JSON with the machine and its load.
+
+    python -m benchmarks.render [--epochs 10000] [--repeats 3] [--threads N]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -19,6 +33,7 @@ import torch
 
 from benchmarks._machine import machine_info
 from filters.attitude import random_quaternion
+from lightcurve.kernels import get_num_threads
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
 from shapes import Material, get_library, primitives
@@ -28,6 +43,7 @@ MATERIALS = {
     "phong": {"rd": 0.3, "rs": 0.4, "n": 50.0},
     "cook-torrance": {"rd": 0.3, "rs": 0.5, "m": 0.2, "f0": 0.9},
     "ashikhmin-shirley": {"rd": 0.3, "rs": 0.4, "nu": 100.0, "nv": 100.0},
+    "anisotropic": {"rd": 0.3, "rs": 0.4, "nu": 10.0, "nv": 1000.0},
     "lommel-seeliger": {"w": 0.2, "c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5},
 }
 
@@ -96,62 +112,109 @@ def best_time(func, repeats: int) -> float:
     return best
 
 
+def material_shape(base, name: str):
+    """``base`` with every group of BRDF ``name`` (MATERIALS)."""
+    brdf_name = "ashikhmin-shirley" if name == "anisotropic" else name
+    return base.with_materials({g: Material(brdf_name, MATERIALS[name]) for g in base.group_names})
+
+
+def rate(renderer: Renderer, q, sun, obs, repeats: int) -> float:
+    """Facet-epochs per second of ``renderer.flux`` (after one warm-up call)."""
+    renderer.flux(q[:64], sun[:64] if sun.ndim > 1 else sun, obs[:64] if obs.ndim > 1 else obs)
+    seconds = best_time(lambda: renderer.flux(q, sun, obs), repeats)
+    return renderer.n_facets * len(q) / seconds
+
+
+def first_call_seconds(dtype: str) -> dict:
+    """Fresh-process cost of the first fused call: import, compile or cache load, render."""
+    code = (
+        "import time, numpy as np; t0 = time.perf_counter();"
+        "from lightcurve.render import Renderer; from shapes import primitives, Material;"
+        "s = primitives.icosphere(1.0, subdivisions=3);"
+        "s = s.with_materials({g: Material('ashikhmin-shirley', {'rd': 0.3, 'rs': 0.4,"
+        " 'nu': 100.0, 'nv': 100.0}) for g in s.group_names});"
+        f"import torch; r = Renderer(s, dtype=torch.{dtype}); t1 = time.perf_counter();"
+        "r.flux(np.array([0, 0, 0, 1.0]), np.array([1.5e11, 0, 0]), np.array([4e7, 1e7, 0]));"
+        "t2 = time.perf_counter(); print(t1 - t0, t2 - t1)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    setup, first = (float(v) for v in out.stdout.split())
+    return {"imports_and_shape_seconds": setup, "first_call_seconds": first}
+
+
+def small_calls(repeats: int) -> dict:
+    """µs per call for 13 attitudes × one epoch of a 24-facet cylinder (a UKF's sigma points)."""
+    shape = primitives.cylinder(sections=22)
+    q = random_quaternion(13, np.random.default_rng(2))
+    sun, obs = np.array([1.496e11, 0.0, 0.0]), np.array([3.0e7, 2.0e7, 1.0e6])
+    out = {"facets": len(shape.compiled()), "rows": 13}
+    calls = 200
+    for backend in ("auto", "torch"):
+        renderer = Renderer(shape, backend=backend)
+        renderer.flux(q, sun, obs)
+        seconds = best_time(lambda r=renderer: [r.flux(q, sun, obs) for _ in range(calls)], repeats)
+        out[f"{'fused' if backend == 'auto' else 'torch'}_us_per_call"] = seconds / calls * 1e6
+    out["speedup"] = out["torch_us_per_call"] / out["fused_us_per_call"]
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--epochs", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--no-compile", action="store_true")
     parser.add_argument(
         "--threads", type=int, help="torch intra-op threads (default: torch's own choice)"
     )
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    first_calls = {dtype: first_call_seconds(dtype) for dtype in ("float32", "float64")}
     sphere = primitives.icosphere(1.0, subdivisions=3)  # 1280 facets
     q, sun, obs = workload(args.epochs)
     results = []
-    for name, params in MATERIALS.items():
-        shape = sphere.with_materials({g: Material(name, params) for g in sphere.group_names})
-        n_facets = len(shape.compiled())
-        work = n_facets * args.epochs
-        row = {"brdf": name, "facets": n_facets, "epochs": args.epochs}
-        n_base = max(1, args.epochs // 10)  # the baseline is slow: time a tenth, scale
+    for name in MATERIALS:
+        shape = material_shape(sphere, name)
+        row = {"brdf": name, "facets": len(shape.compiled()), "epochs": args.epochs}
+        n_base = max(1, args.epochs // 20)  # the baselines are slow: time a twentieth
         sub = (q[:n_base], sun[:n_base], obs[:n_base])
-        for dtype in (np.float32, np.float64):
-            start = time.perf_counter()
-            reference_flux(shape, *sub, dtype=dtype)
-            row[f"numpy_baseline_{np.dtype(dtype).name}"] = (
-                n_facets * n_base / (time.perf_counter() - start)
-            )
-        modes = [False] if args.no_compile else [False, True]
         for dtype in (torch.float32, torch.float64):
-            for compiled in modes:
-                renderer = Renderer(shape, dtype=dtype, compile=compiled)
-                renderer.flux(q[:512], sun[:512], obs[:512])  # warm-up / compilation
-                seconds = best_time(lambda r=renderer: r.flux(q, sun, obs), args.repeats)
-                key = f"torch_{'compiled' if compiled else 'eager'}_{str(dtype).split('.')[-1]}"
-                row[key] = work / seconds
-        row["speedup_best_vs_numpy_float32"] = (
-            max(v for k, v in row.items() if k.startswith("torch_") and k.endswith("float32"))
-            / row["numpy_baseline_float32"]
-        )
+            key = str(dtype).split(".")[-1]
+            fused = rate(Renderer(shape, dtype=dtype), q, sun, obs, args.repeats)
+            eager = rate(Renderer(shape, dtype=dtype, backend="torch"), *sub, args.repeats)
+            start = time.perf_counter()
+            reference_flux(shape, *sub, dtype=np.dtype(key).type)
+            numpy_rate = row["facets"] * n_base / (time.perf_counter() - start)
+            row[f"fused_{key}"] = fused
+            row[f"torch_path_{key}"] = eager
+            row[f"numpy_reference_{key}"] = numpy_rate
+            row[f"fused_vs_torch_path_{key}"] = fused / eager
+            row[f"fused_vs_numpy_{key}"] = fused / numpy_rate
         results.append(row)
-    # The particle-filter shape: 10⁴ attitudes against one epoch's geometry.
-    shape = sphere.with_materials(
-        {
-            g: Material("ashikhmin-shirley", MATERIALS["ashikhmin-shirley"])
-            for g in sphere.group_names
-        }
-    )
+    lambert = results[0]
+    for row in results:
+        for key in ("float32", "float64"):
+            row[f"lambert_rate_over_this_{key}"] = lambert[f"fused_{key}"] / row[f"fused_{key}"]
+    ashikhmin = next(row for row in results if row["brdf"] == "ashikhmin-shirley")
+    # Ashikhmin–Shirley at 20 480 facets and in the particle-filter shape.
+    large = material_shape(primitives.icosphere(1.0, subdivisions=5), "ashikhmin-shirley")
     particles = random_quaternion(10_000, np.random.default_rng(1))
-    pf = {}
-    for compiled in [False] if args.no_compile else [False, True]:
-        renderer = Renderer(shape, dtype=torch.float32, compile=compiled)
-        renderer.flux(particles, sun[0], obs[0])
-        seconds = best_time(lambda r=renderer: r.flux(particles, sun[0], obs[0]), args.repeats)
-        pf["compiled" if compiled else "eager"] = {
-            "seconds_per_update": seconds,
-            "facet_particles_per_second": len(shape.compiled()) * len(particles) / seconds,
+    scaling = {}
+    for dtype in (torch.float32, torch.float64):
+        key = str(dtype).split(".")[-1]
+        n_large = max(1, args.epochs // 4)
+        big = rate(Renderer(large, dtype=dtype), q[:n_large], sun[:n_large], obs[:n_large], 2)
+        pf = rate(
+            Renderer(material_shape(sphere, "ashikhmin-shirley"), dtype=dtype),
+            particles,
+            sun[0],
+            obs[0],
+            args.repeats,
+        )
+        scaling[key] = {
+            "facets_20480": big,
+            "facets_20480_over_1280": big / ashikhmin[f"fused_{key}"],
+            "particle_filter_10k_particles_one_epoch": pf,
+            "particle_filter_over_epochs": pf / ashikhmin[f"fused_{key}"],
         }
     print(
         json.dumps(
@@ -159,10 +222,14 @@ def main() -> None:
                 "benchmark": "render",
                 "unit": "facet-epochs per second",
                 "results": results,
-                "particle_filter_10k_particles_one_epoch_float32": pf,
+                "ashikhmin_shirley_scaling": scaling,
+                "first_call_fresh_process": first_calls,
+                "small_calls": small_calls(args.repeats),
                 "shadow_table_vs_exact": shadow_table_accuracy(),
                 "batch_vs_single_calls": batch_equals_single_calls(),
+                "load_average": os.getloadavg(),
                 "machine": machine_info(),
+                "kernel_threads": get_num_threads(),
             },
             indent=2,
         )

@@ -13,40 +13,65 @@ and ``V`` (their product approximates the fraction that is both): 1 for a convex
 (``"table"``), or ray cast for every epoch (``"exact"``, the reference). A fully dark epoch
 has zero flux and infinite magnitude.
 
-The computation runs in torch over any leading batch shape (particles × epochs) in
-cache-sized chunks; numpy inputs give numpy outputs. Every BRDF is evaluated through its
-cosine form (``n·L``, ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``,
-``H·v``), one call per material on a contiguous block of facets.
+Two code paths evaluate the same formula over any leading batch shape (particles ×
+epochs); numpy inputs give numpy outputs, torch inputs torch outputs:
+
+* the fused kernels of :mod:`lightcurve.kernels` (numba, compiled once per machine and
+  cached): CPU computations whose result needs no gradient, i.e. every simulation, filter
+  and particle update. One pass over the facets per row, no (rows × facets) arrays, rows
+  spread over ``torch.get_num_threads()`` threads;
+* torch (the *eager* path): when an input requires grad (the global search and the
+  photometric planner differentiate the flux with respect to the attitude), on CUDA, and for
+  :meth:`Renderer.facet_flux`. Every BRDF is evaluated through its cosine form (``n·L``,
+  ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``, ``H·v``), one call per
+  material on a contiguous block of facets, in cache-sized chunks of rows.
 """
 
 from __future__ import annotations
 
+import ast
+import importlib.util
 import logging
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from functools import cache, cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 import brdf
 from filters.attitude import rotate
 from lightcurve.geometry import AU_M
 from shapes import CompiledFacets, FacetModel, visible_fraction
 
+if TYPE_CHECKING:
+    import torch
+
 logger = logging.getLogger(__name__)
 
-__all__ = ["SHADOW_MODES", "SUN_MAGNITUDE", "Renderer", "flux_to_magnitude", "magnitude_to_flux"]
+__all__ = [
+    "BACKENDS",
+    "SHADOW_MODES",
+    "SUN_MAGNITUDE",
+    "Renderer",
+    "flux_to_magnitude",
+    "magnitude_to_flux",
+]
 
 #: Apparent magnitude of the Sun at 1 AU (V band, DESIGN.md).
 SUN_MAGNITUDE = -26.74
 SHADOW_MODES = ("auto", "none", "table", "exact")
+BACKENDS = ("auto", "torch")
 # Facet-rows per chunk by default: 65536 elements = 256 KiB in float32, cache-sized.
 _CHUNK_ELEMENTS = 65536
 # Every Renderer compiles the same kernel code with its own constants; allow that many
 # specialisations before dynamo falls back to eager (its default limit is 8).
 _RECOMPILE_LIMIT = 64
+# Rows × facets of one shadow-factor array on the fused path (16 MiB in float64).
+_SHADOW_ELEMENTS = 1 << 21
 
 
 def flux_to_magnitude(flux: Any) -> Any:
@@ -62,8 +87,8 @@ def flux_to_magnitude(flux: Any) -> Any:
     array
         Apparent magnitude.
     """
-    if isinstance(flux, torch.Tensor):
-        return SUN_MAGNITUDE - 2.5 * torch.log10(flux)
+    if _is_tensor(flux):
+        return SUN_MAGNITUDE - 2.5 * flux.log10()
     with np.errstate(divide="ignore"):
         return SUN_MAGNITUDE - 2.5 * np.log10(flux)
 
@@ -93,10 +118,13 @@ class Renderer:
         Self-shadowing mode. ``"auto"``: ``"none"`` when no facet can ever be shadowed
         (convex bodies), else ``"table"`` when the shape carries a visibility table, else
         ``"exact"``.
-    dtype : torch.dtype
-        Computation precision (float64 by default; float32 is ~2× faster).
+    dtype : torch.dtype, optional
+        Computation precision (``torch.float64`` by default; ``torch.float32`` is up to 2×
+        faster).
     device : str or torch.device, optional
-        Where to compute (default: CUDA when available, else CPU).
+        Where the torch path computes (default: CUDA when torch sees a GPU, else the CPU, where
+        the fused kernels serve the calls without gradient). torch itself is imported only
+        when a call needs it, so numpy-only work (a simulation) never pays for it.
     chunk_size : int, optional
         Rows (epochs × particles) per chunk. By default ``65536 // facets`` (at least 16):
         the (chunk × facets) work arrays then stay in the L2 cache, which measured 1.3–1.6×
@@ -104,11 +132,16 @@ class Renderer:
     scale_sun_distance : bool
         Scale the Sun's flux by ``(1 AU / r_sun)²`` (True: physically right for any object).
     compile : bool
-        Compile the per-chunk kernel with ``torch.compile`` (inductor). About 3–4× faster
-        on CPU once compiled, but the first call pays 10–30 s of compilation, so it pays off
-        for particle filters and long batches only. Falls back to eager execution (with a
-        logged warning) where compilation is unavailable. Raises dynamo's recompile limit
-        to 64, since each renderer specialises the kernel to its own facets and materials.
+        Compile the torch path's per-chunk kernel with ``torch.compile`` (inductor). It only
+        serves the calls that take the torch path (gradients, CUDA, :meth:`facet_flux`); the
+        fused kernels are faster on the CPU without it. The first call pays 10–30 s of
+        compilation; falls back to eager execution (with a logged warning) where compilation
+        is unavailable. Raises dynamo's recompile limit to 64, since each renderer
+        specialises the kernel to its own facets and materials.
+    backend : {"auto", "torch"}
+        ``"auto"``: the fused numba kernels for CPU calls that need no gradient, torch
+        otherwise (see the module docstring); ``"torch"``: always torch (the reference path
+        of the tests and the baseline of ``benchmarks/render.py``).
 
     Examples
     --------
@@ -121,13 +154,16 @@ class Renderer:
         self,
         shape: FacetModel | CompiledFacets,
         shadows: str = "auto",
-        dtype: torch.dtype = torch.float64,
+        dtype: torch.dtype | None = None,
         device: str | torch.device | None = None,
         chunk_size: int | None = None,
         scale_sun_distance: bool = True,
         compile: bool = False,
+        backend: str = "auto",
     ) -> None:
         compiled = shape.compiled() if isinstance(shape, FacetModel) else shape
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         if shadows not in SHADOW_MODES:
             raise ValueError(f"shadows must be one of {', '.join(SHADOW_MODES)}, got {shadows!r}")
         if shadows == "auto":
@@ -139,10 +175,9 @@ class Renderer:
             raise ValueError("shadows='table' needs a shape with a visibility table")
         self.compiled = compiled
         self.shadows = shadows
-        self.dtype = dtype
-        self.device = torch.device(
-            device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
-        )
+        self.backend = backend
+        self._dtype = dtype
+        self._device = device
         self.chunk_size = (
             max(16, _CHUNK_ELEMENTS // len(compiled.areas))
             if chunk_size is None
@@ -150,8 +185,10 @@ class Renderer:
         )
         self.scale_sun_distance = scale_sun_distance
 
-        # Sort facets by material so that each BRDF sees one contiguous block (a view).
-        order = np.argsort(compiled.material_index, kind="stable")
+        # Sort facets by material so that each BRDF sees one contiguous block (a view), and
+        # by direction within a material so that neighbours in memory face alike: the fused
+        # kernels then skip whole tiles of facets that are dark or turned away.
+        order = np.lexsort((_direction_key(compiled.normals), compiled.material_index))
         self._order = order
         normals = compiled.normals[order]
         tangents = compiled.tangents[order]
@@ -167,15 +204,59 @@ class Renderer:
             self._blocks.append(_Block(int(rows[0]), int(rows[-1]) + 1, model))
         self.n_facets = len(order)
         # The frame matrix stacks normals, tangents and bitangents: one GEMM per direction.
-        frame = (
+        self._frame_rows = (
             np.concatenate([normals, tangents, bitangents], axis=0)
             if self._anisotropic
             else normals
         )
-        self._frame = torch.as_tensor(frame, dtype=dtype, device=self.device)
-        self._areas = torch.as_tensor(compiled.areas[order], dtype=dtype, device=self.device)
         self._static_shapes = compile
         self._kernel = _compiled_or_eager(self._facet_terms) if compile else self._facet_terms
+        self._fused: Any = None  # lightcurve.kernels.FusedFlux, built on first use
+
+    @cached_property
+    def dtype(self) -> torch.dtype:
+        """Computation precision (a torch dtype)."""
+        import torch
+
+        return torch.float64 if self._dtype is None else self._dtype
+
+    @cached_property
+    def device(self) -> torch.device:
+        """Device of the torch path (imports torch)."""
+        import torch
+
+        if self._device is not None:
+            return torch.device(self._device)
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+    @cached_property
+    def _on_cpu(self) -> bool:
+        """Whether the renderer computes on the CPU, decided without importing torch when
+        torch is not loaded and its build has no GPU support."""
+        if self._device is not None:
+            return str(self._device).split(":")[0] == "cpu"
+        if "torch" not in sys.modules and not _torch_build_has_gpu():
+            return True
+        return self.device.type == "cpu"
+
+    @cached_property
+    def _numpy_dtype(self) -> np.dtype:
+        """The compute dtype as numpy's (float32 or float64)."""
+        name = "float64" if self._dtype is None else str(self._dtype).rsplit(".", 1)[-1]
+        return np.dtype(np.float32 if name == "float32" else np.float64)
+
+    @cached_property
+    def _frame(self) -> torch.Tensor:
+        import torch
+
+        return torch.as_tensor(self._frame_rows, dtype=self.dtype, device=self.device)
+
+    @cached_property
+    def _areas(self) -> torch.Tensor:
+        import torch
+
+        areas = self.compiled.areas[self._order]
+        return torch.as_tensor(areas, dtype=self.dtype, device=self.device)
 
     # ------------------------------------------------------------------ public API
     def flux(self, q: Any, sun: Any, observer: Any) -> Any:
@@ -217,6 +298,10 @@ class Renderer:
 
     # ------------------------------------------------------------------ internals
     def _evaluate(self, q: Any, sun: Any, observer: Any, per_facet: bool) -> Any:
+        if not per_facet and self._fusable(q, sun, observer):
+            return self._evaluate_fused(q, sun, observer)
+        import torch
+
         as_numpy = not isinstance(q, torch.Tensor)
         out_device = None if as_numpy else q.device
         q, sun, observer = (
@@ -257,6 +342,67 @@ class Renderer:
             return result.detach().cpu().numpy()
         return result.to(out_device)
 
+    def _fusable(self, *inputs: Any) -> bool:
+        """Whether the fused CPU kernels may evaluate these inputs (no gradient, no GPU)."""
+        if self.backend != "auto" or not self._on_cpu:
+            return False
+        torch = sys.modules.get("torch")
+        if torch is None:
+            return True  # no tensor can be among the inputs
+        grad = torch.is_grad_enabled()
+        for v in inputs:
+            if isinstance(v, torch.Tensor) and (
+                v.device.type != "cpu" or (grad and v.requires_grad)
+            ):
+                return False
+        return True
+
+    def _fused_flux(self) -> Any:
+        if self._fused is None:
+            from lightcurve.kernels import FusedFlux, block_parameters, facet_table
+
+            compiled, order = self.compiled, self._order
+            dtype = self._numpy_dtype
+            table = facet_table(
+                compiled.normals[order], compiled.areas[order], compiled.tangents[order], dtype
+            )
+            blocks = []
+            for block in self._blocks:
+                model = block.model
+                kind, row = block_parameters(model.name, model.params, model.anisotropic)
+                blocks.append((kind, block.start, block.stop, row))
+            self._fused = FusedFlux(table, blocks, dtype)
+        return self._fused
+
+    def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
+        """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
+        as_numpy = not _is_tensor(q)
+        q, sun, observer = (_float64_array(v) for v in (q, sun, observer))
+        for name, value, size in (("q", q, 4), ("sun", sun, 3), ("observer", observer, 3)):
+            if value.ndim == 0 or value.shape[-1] != size:
+                raise ValueError(f"{name} must have shape (..., {size}), got {value.shape}")
+        shape = np.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
+        q, sun, observer = (_rows(v, shape) for v in (q, sun, observer))
+        fused = self._fused_flux()
+        light, view, scale = fused.geometry(
+            q, sun, observer, AU_M if self.scale_sun_distance else 0.0
+        )
+        if self.shadows == "none":
+            sums = fused.sums(light, view)
+        else:  # shadow factors for blocks of rows, to bound the (rows × facets) array
+            sums = np.zeros(len(light), dtype=fused.dtype)
+            step = max(1, _SHADOW_ELEMENTS // self.n_facets)
+            for start in range(0, len(light), step):
+                rows = slice(start, start + step)
+                factor = self._shadow_factor(light[rows], view[rows])
+                sums[rows] = fused.sums(light[rows], view[rows], factor)
+        flux = (sums * scale).astype(fused.dtype, copy=False).reshape(shape)
+        if as_numpy:
+            return flux
+        import torch
+
+        return torch.from_numpy(flux)
+
     def _facet_terms(self, light: torch.Tensor, view: torch.Tensor, shadow: Any) -> torch.Tensor:
         """``ρ A (n·L)(n·V) · shadow`` for every facet of a chunk, shape (chunk, K)."""
         k = self.n_facets
@@ -266,9 +412,11 @@ class Renderer:
         lv = (light * view).sum(dim=-1, keepdim=True)
         hu = hv = None
         if self._anisotropic:
-            half_norm = torch.sqrt(torch.clamp(2.0 + 2.0 * lv, min=1e-30))
+            half_norm = (2.0 + 2.0 * lv).clamp(min=1e-30).sqrt()
             hu = (proj_l[:, k : 2 * k] + proj_v[:, k : 2 * k]) / half_norm
             hv = (proj_l[:, 2 * k :] + proj_v[:, 2 * k :]) / half_norm
+        import torch
+
         rho = torch.cat(
             [
                 block.model.from_cosines(
@@ -282,28 +430,41 @@ class Renderer:
             ],
             dim=-1,
         )
-        terms = rho * self._areas * torch.clamp(nl, min=0.0) * torch.clamp(nv, min=0.0)
+        terms = rho * self._areas * nl.clamp(min=0.0) * nv.clamp(min=0.0)
         return terms if shadow is None else terms * shadow
 
-    def _shadow_factor(self, light: torch.Tensor, view: torch.Tensor) -> Any:
-        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies."""
+    def _shadow_factor(self, light: Any, view: Any) -> Any:
+        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies.
+
+        ``light``/``view`` are torch tensors (eager path) or numpy arrays (fused path); the
+        factor is of the same kind and dtype, in the renderer's (material-sorted) facet order.
+        """
         if self.shadows == "none":
             return None
-        if self.shadows == "table":
-            table = self.compiled.visibility
-            both = table.interpolate(torch.cat([light, view], dim=0))
+        tensors = _is_tensor(light)
+        if tensors:
+            import torch
+
+            directions = torch.cat([light, view])
         else:
-            directions = torch.cat([light, view], dim=0).detach().cpu().numpy().astype(float)
-            both = torch.as_tensor(
-                visible_fraction(self.compiled, directions), dtype=self.dtype, device=self.device
-            )
+            directions = np.concatenate([light, view])
+        if self.shadows == "table":
+            both = self.compiled.visibility.interpolate(directions)
+        else:
+            rays = directions.detach().cpu().numpy() if tensors else directions
+            both = visible_fraction(self.compiled, rays.astype(float))
+            if tensors:
+                both = torch.as_tensor(both, dtype=self.dtype, device=self.device)
         both = both[:, self._order]
         n = light.shape[0]
-        return both[:n] * both[n:]
+        factor = both[:n] * both[n:]
+        return factor if tensors else np.ascontiguousarray(factor, dtype=light.dtype)
 
 
 def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
     """``torch.compile(kernel)``, replaced by ``kernel`` itself if compilation fails."""
+    import torch
+
     config = torch._dynamo.config
     if hasattr(config, "recompile_limit"):
         config.recompile_limit = max(config.recompile_limit, _RECOMPILE_LIMIT)
@@ -321,6 +482,69 @@ def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., tor
             return kernel(*args)
 
     return run
+
+
+def _direction_key(normals: np.ndarray, bits: int = 6) -> np.ndarray:
+    """Z-order (Morton) index of unit vectors on the octahedral map, ``2^bits`` cells a side.
+
+    Vectors with close indices point in close directions (octahedral unit-vector encoding:
+    Meyer et al. 2010, "On floating-point normal vectors").
+    """
+    n = normals / np.maximum(np.abs(normals).sum(axis=1, keepdims=True), 1e-300)
+    u, v = n[:, 0], n[:, 1]
+    lower = n[:, 2] < 0
+    u, v = (
+        np.where(lower, (1.0 - np.abs(v)) * np.sign(u), u),
+        np.where(lower, (1.0 - np.abs(u)) * np.sign(v), v),
+    )
+    cells = 1 << bits
+    ix = np.clip(((u + 1.0) * 0.5 * cells).astype(np.int64), 0, cells - 1)
+    iy = np.clip(((v + 1.0) * 0.5 * cells).astype(np.int64), 0, cells - 1)
+    key = np.zeros(len(normals), dtype=np.int64)
+    for bit in range(bits):
+        key |= ((ix >> bit) & 1) << (2 * bit) | ((iy >> bit) & 1) << (2 * bit + 1)
+    return key
+
+
+def _is_tensor(value: Any) -> bool:
+    """Whether ``value`` is a torch tensor (False without importing torch when it is not
+    loaded: no tensor can exist then)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(value, torch.Tensor)
+
+
+@cache
+def _torch_build_has_gpu() -> bool:
+    """Whether the installed torch is a CUDA/ROCm build, read from ``torch/version.py``
+    without importing torch (True when that cannot be told: then torch is asked)."""
+    try:
+        spec = importlib.util.find_spec("torch")
+        source = Path(next(iter(spec.submodule_search_locations)), "version.py")
+        values = {}
+        for node in ast.parse(source.read_text(encoding="utf-8")).body:
+            target = getattr(node, "target", None) or (getattr(node, "targets", None) or [None])[0]
+            if isinstance(target, ast.Name) and target.id in ("cuda", "hip"):
+                values[target.id] = ast.literal_eval(node.value)
+        return set(values) != {"cuda", "hip"} or any(v is not None for v in values.values())
+    except (AttributeError, OSError, StopIteration, TypeError, ValueError, SyntaxError):
+        return True
+
+
+def _float64_array(value: Any) -> np.ndarray:
+    """A float64 numpy array of ``value`` (numpy, sequence or CPU tensor)."""
+    if _is_tensor(value):
+        value = value.detach().numpy()
+    return np.asarray(value, dtype=np.float64)
+
+
+def _rows(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` broadcast to ``(*shape, n)`` as a writable C-ordered ``(rows, n)`` array."""
+    if value.shape[:-1] != shape:
+        value = np.broadcast_to(value, (*shape, value.shape[-1]))
+    value = value.reshape(-1, value.shape[-1])
+    if not (value.flags.c_contiguous and value.flags.writeable):
+        value = value.copy()  # one kernel specialisation: C order, writable
+    return value
 
 
 def lambert_sphere_flux(albedo: float, radius: float, distance: float, alpha: Any) -> Any:

@@ -165,7 +165,9 @@ class ShapeLibrary:
             raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
         return json.loads(json.dumps(shapes[name]))
 
-    def load(self, name: str, *, build_visibility: bool = True) -> FacetModel:
+    def load(
+        self, name: str, *, build_visibility: bool = True, visibility: bool = True
+    ) -> FacetModel:
         """Load a shape with its materials, inertia and visibility table.
 
         Parameters
@@ -174,6 +176,9 @@ class ShapeLibrary:
         build_visibility : bool
             For a non-convex shape without a stored table, build one (and store it when the
             library is writable).
+        visibility : bool
+            Attach the visibility table (stored or built). False skips reading, checking and
+            building it: for renderers without self-shadowing (``shadows="none"``).
 
         Raises
         ------
@@ -209,6 +214,8 @@ class ShapeLibrary:
             provenance=entry.get("provenance", {}),
         )
         table_name = entry.get("visibility")
+        if not visibility:
+            return model
         if table_name:
             table_path = self.path / table_name
             if not table_path.is_file() or file_sha256(table_path) != entry.get(
@@ -219,7 +226,7 @@ class ShapeLibrary:
                 return model.with_visibility(VisibilityTable.load(table_path))
             except ShapeError as exc:
                 raise ShapeError(f"{where}: {exc}") from None
-        if model.is_convex or not build_visibility:
+        if not build_visibility or model.is_convex:
             return model
         table = build_visibility_table(model)
         if not self.read_only:

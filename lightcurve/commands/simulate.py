@@ -83,7 +83,7 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 
 def run(args: argparse.Namespace) -> int:
     geometry = io.read(args.geometry, require_magnitudes=False)
-    shape = get_library(args.library).load(args.shape)
+    shape = get_library(args.library).load(args.shape, visibility=args.shadows != "none")
     if args.noise_mag is not None:
         noise = GaussianNoise(args.noise_mag)
     elif args.ccd is not None:

@@ -169,3 +169,27 @@ def test_simulate_command(tmp_path, capsys):
         == 2
     )
     assert "nope" in capsys.readouterr().err
+
+
+def test_truth_states_match_the_attitude_core_propagator():
+    """The compiled right-hand side gives the attitude core's DOP853 states (full inertia)."""
+    from filters.attitude import propagate
+    from lightcurve.simulate import truth_states
+
+    inertia = np.array([[1.0, 0.05, 0.0], [0.05, 1.3, 0.02], [0.0, 0.02, 1.7]])
+    q0 = np.array([0.2, -0.4, 0.1, 0.888819])
+    omega0 = np.deg2rad([1.5, -0.8, 2.2])
+    times = np.linspace(0.0, 600.0, 301)
+    ours = truth_states(times, q0, omega0, inertia)
+    core = propagate(np.concatenate([q0 / np.linalg.norm(q0), omega0]), times, inertia)
+    np.testing.assert_allclose(ours, core, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        truth_states(times[::-1], q0, omega0, inertia)
+
+
+def test_library_load_without_visibility_table():
+    library = get_library()
+    full = library.load("itokawa")
+    bare = library.load("itokawa", visibility=False)
+    assert full.visibility is not None and bare.visibility is None
+    np.testing.assert_array_equal(bare.facet_can_be_shadowed, full.facet_can_be_shadowed)

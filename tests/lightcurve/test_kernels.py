@@ -1,0 +1,143 @@
+"""The fused numba kernels against numpy, the torch path, the numpy reference and autograd."""
+
+import numpy as np
+import pytest
+import torch
+from numba import njit
+
+from filters.attitude import random_quaternion
+from lightcurve.kernels import elementary, get_num_threads, set_num_threads
+from lightcurve.reference import reference_flux
+from lightcurve.render import Renderer
+from shapes import Material, get_library, primitives
+
+AU = 1.495978707e11
+MATERIALS = {
+    "lambert": ("lambert", {"rd": 0.5}),
+    "phong": ("phong", {"rd": 0.3, "rs": 0.4, "n": 50.0}),
+    "phong-flat": ("phong", {"rd": 0.3, "rs": 0.4, "n": 0.0}),
+    "cook-torrance": ("cook-torrance", {"rd": 0.3, "rs": 0.5, "m": 0.2, "f0": 0.9}),
+    "ashikhmin-shirley": ("ashikhmin-shirley", {"rd": 0.3, "rs": 0.4, "nu": 100.0, "nv": 100.0}),
+    "anisotropic": ("ashikhmin-shirley", {"rd": 0.3, "rs": 0.4, "nu": 10.0, "nv": 1000.0}),
+    "lommel-seeliger": ("lommel-seeliger", {"w": 0.2, "c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5}),
+}
+
+
+@njit(cache=True)
+def _log_exp(x, y, log_out, exp_out):
+    for i in range(x.size):
+        log_out[i] = elementary.log(x[i])
+        exp_out[i] = elementary.exp(y[i])
+
+
+def random_geometry(n, seed):
+    rng = np.random.default_rng(seed)
+    sun = rng.normal(size=(n, 3))
+    sun *= AU / np.linalg.norm(sun, axis=1, keepdims=True)
+    obs = rng.normal(size=(n, 3))
+    obs *= rng.uniform(4e5, 4e7, (n, 1)) / np.linalg.norm(obs, axis=1, keepdims=True)
+    return random_quaternion(n, rng), sun, obs
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_vectorised_log_and_exp_match_numpy(dtype):
+    rng = np.random.default_rng(11)
+    tiny = np.finfo(dtype).smallest_subnormal
+    x = np.concatenate([rng.uniform(1e-7, 2.0, 5000), [tiny, 1e-40, 1.0, 0.5, 1e30]]).astype(dtype)
+    y = np.concatenate([rng.uniform(-80.0, 80.0, 5000), [0.0, -1e-9, -86.5, -1e4, 1e-3]])
+    y = y.astype(dtype)
+    log_out, exp_out = np.empty_like(x), np.empty_like(y)
+    _log_exp(x, y, log_out, exp_out)
+    ulp = np.finfo(dtype).eps
+    exact_log = np.log(x.astype(np.float64))
+    assert np.all(np.abs(log_out - exact_log) <= 2 * ulp * np.maximum(np.abs(exact_log), 1.0))
+    exact_exp = np.exp(y.astype(np.float64))
+    normal = exact_exp > np.finfo(dtype).tiny
+    assert np.all(np.abs(exp_out[normal] - exact_exp[normal]) <= 2 * ulp * exact_exp[normal])
+    assert np.all(exp_out[~normal] <= np.finfo(dtype).tiny)
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+@pytest.mark.parametrize("material", list(MATERIALS))
+def test_fused_matches_torch_path_and_reference(material, dtype):
+    name, params = MATERIALS[material]
+    sphere = primitives.icosphere(1.0, subdivisions=2)
+    shape = sphere.with_materials({g: Material(name, params) for g in sphere.group_names})
+    q, sun, obs = random_geometry(200, seed=12)
+    fused = Renderer(shape, dtype=dtype).flux(q, sun, obs)
+    eager = Renderer(shape, dtype=dtype, backend="torch").flux(q, sun, obs)
+    assert fused.dtype == (np.float32 if dtype == torch.float32 else np.float64)
+    reference = reference_flux(shape, q, sun, obs)
+    scale = np.max(reference)
+    rtol = 1e-11 if dtype == torch.float64 else 2e-5
+    assert np.max(np.abs(fused - reference)) < rtol * scale
+    assert np.max(np.abs(fused - eager)) < (1e-11 if dtype == torch.float64 else 5e-4) * scale
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_fused_with_shadow_table_and_several_materials(dtype):
+    for name, mode in (("box_wing", "table"), ("itokawa", "table"), ("box_wing", "exact")):
+        shape = get_library().load(name)
+        q, sun, obs = random_geometry(60, seed=13)
+        fused = Renderer(shape, shadows=mode, dtype=dtype).flux(q, sun, obs)
+        eager = Renderer(shape, shadows=mode, dtype=dtype, backend="torch").flux(q, sun, obs)
+        tol = 1e-11 if dtype == torch.float64 else 2e-4
+        np.testing.assert_allclose(fused, eager, rtol=tol, atol=tol * np.max(eager))
+
+
+def test_kinds_of_input_and_output():
+    renderer = Renderer(get_library().load("box_wing"), dtype=torch.float32)
+    q, sun, obs = random_geometry(32, seed=14)
+    out_np = renderer.flux(q, sun, obs)
+    assert isinstance(out_np, np.ndarray) and out_np.dtype == np.float32
+    out_t = renderer.flux(torch.tensor(q), torch.tensor(sun), torch.tensor(obs))
+    assert isinstance(out_t, torch.Tensor) and out_t.dtype == torch.float32
+    np.testing.assert_array_equal(out_t.numpy(), out_np)
+    # (P, E) broadcasting, one attitude against many geometries, and empty batches.
+    grid = renderer.flux(np.stack([q, q[::-1]]), sun, obs)
+    np.testing.assert_array_equal(grid[0], out_np)
+    assert renderer.flux(q[0], sun, obs).shape == (32,)
+    assert renderer.flux(q[:0], sun[:0], obs[:0]).shape == (0,)
+    with pytest.raises(ValueError, match="q must have shape"):
+        renderer.flux(q[:, :3], sun, obs)
+
+
+def test_thread_count_does_not_change_results():
+    sphere = primitives.icosphere(1.0, subdivisions=3)
+    shape = sphere.with_materials(
+        {g: Material(*MATERIALS["ashikhmin-shirley"]) for g in sphere.group_names}
+    )
+    q, sun, obs = random_geometry(400, seed=15)
+    renderer = Renderer(shape)
+    before = get_num_threads()
+    try:
+        set_num_threads(1)
+        one = renderer.flux(q, sun, obs)
+        set_num_threads(2)
+        two = renderer.flux(q, sun, obs)
+    finally:
+        set_num_threads(None)
+    np.testing.assert_array_equal(one, two)
+    assert get_num_threads() == before
+    with pytest.raises(ValueError, match="at least 1"):
+        set_num_threads(0)
+
+
+def test_gradients_take_the_torch_path_and_match_differences_of_the_fused_path():
+    """∂flux/∂q by autograd (torch path) against central differences of the fused kernels."""
+    shape = get_library().load("box_wing")
+    renderer = Renderer(shape)
+    q, sun, obs = random_geometry(8, seed=16)
+    qt = torch.tensor(q, requires_grad=True)
+    flux = renderer.flux(qt, torch.tensor(sun), torch.tensor(obs))
+    assert flux.requires_grad
+    np.testing.assert_allclose(flux.detach().numpy(), renderer.flux(q, sun, obs), rtol=1e-12)
+    (gradient,) = torch.autograd.grad(flux.sum(), qt)
+    step = 1e-6
+    for k in range(4):
+        dq = np.zeros(4)
+        dq[k] = step
+        central = (renderer.flux(q + dq, sun, obs) - renderer.flux(q - dq, sun, obs)) / (2 * step)
+        np.testing.assert_allclose(
+            gradient[:, k].numpy(), central, rtol=1e-5, atol=1e-8 * np.max(np.abs(central))
+        )
