@@ -40,14 +40,14 @@ import numpy as np
 import torch
 
 from filters.attitude import (
+    PrincipalInertia,
     attitude_angle,
     attitude_matrix,
-    inertia_from_tanh,
-    propagate_torque_free,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
+    torque_free_trajectory,
 )
 from filters.linalg import covariance_root
 from filters.symmetry import SymmetryGroup
@@ -211,9 +211,8 @@ class BatchProblem:
     estimate_inertia: bool = False
     max_step: float = 4.0
     dtype: torch.dtype = torch.float64
-    _inertia: torch.Tensor = field(init=False, repr=False)
-    _inverse: torch.Tensor = field(init=False, repr=False)
-    _axes: torch.Tensor = field(init=False, repr=False)
+    _principal: PrincipalInertia = field(init=False, repr=False)
+    _tanh_axes: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, dtype=float)
@@ -221,10 +220,9 @@ class BatchProblem:
         self.sigma = np.asarray(self.sigma, dtype=float)
         if np.any(np.diff(self.times) < 0):
             raise ValueError("times must be non-decreasing")
-        self._inertia = torch.as_tensor(np.stack(self.inertias), dtype=self.dtype)
-        self._inverse = torch.linalg.inv(self._inertia)
+        self._principal = PrincipalInertia.from_inertia(np.stack(self.inertias))
         axes = self.principal_axes or [np.eye(3)] * len(self.inertias)
-        self._axes = torch.as_tensor(np.stack(axes), dtype=self.dtype)
+        self._tanh_axes = np.stack(axes)
 
     @property
     def n_params(self) -> int:
@@ -266,27 +264,15 @@ class BatchProblem:
         -------
         (N, E, 4) tensor
         """
+        rows = shape.numpy()
         if k is None:
-            inertia = self._inertia[shape]
-            inverse = self._inverse[shape]
-            if bool((shape == shape[0]).all()):
-                inertia, inverse = inertia[0], inverse[0]  # shared: one GEMM per derivative
+            shared = bool((rows == rows[0]).all())
+            inertia = self._principal.select(rows[0] if shared else rows)
         else:
-            axes = self._axes[shape]
-            inertia = axes @ inertia_from_tanh(k) @ axes.transpose(-1, -2)
-            inverse = torch.linalg.inv(inertia)
-        epochs = np.asarray(epochs)
-        offsets = self.times[epochs] - t_start
-        out: list[Any] = [None] * len(epochs)
-        for chain in (np.flatnonzero(offsets >= 0), np.flatnonzero(offsets < 0)[::-1]):
-            q, w, t = q0, omega0, 0.0
-            for i in chain[np.argsort(np.abs(offsets[chain]), kind="stable")]:
-                q, w = propagate_torque_free(
-                    q, w, inertia, float(offsets[i] - t), self.max_step, inverse
-                )
-                t = float(offsets[i])
-                out[i] = q
-        return torch.stack(out, dim=1)
+            inertia = PrincipalInertia.from_tanh(k, self._tanh_axes[rows])
+        offsets = self.times[np.asarray(epochs)] - t_start
+        q, _ = torque_free_trajectory(q0, omega0, offsets, inertia, self.max_step)
+        return q
 
     def residuals_of(self, q: torch.Tensor, shape: torch.Tensor, epochs: Any) -> torch.Tensor:
         """Normalised residuals ``(m̂ − m)/σ`` of attitudes ``q (N, E, 4)``, shape (N, E)."""
