@@ -43,9 +43,11 @@ probabilities have no floor, and it blends quaternions linearly.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -67,10 +69,15 @@ class MultipleModelBank:
     """A bank of :class:`~filters.ukf.AttitudeUKF`, one per model, each with one or more
     hypotheses (members).
 
+    The filters are stacked into one (:meth:`AttitudeUKF.stack`, each member keeping its
+    model's dynamics), so every cycle runs the sigma points, the propagation and the
+    unscented transforms of the whole bank in one batched call; only the measurement
+    functions are called model by model.
+
     Parameters
     ----------
     filters : sequence of AttitudeUKF
-        One filter per model.
+        One filter per model (same state dimension and filter settings).
     names : sequence of str
         Model names.
     log_prior : sequence, optional
@@ -87,6 +94,13 @@ class MultipleModelBank:
         NIS values (and ``ν²/R``) are capped at this in the windows.
     residual_factor : float
         A model also fails when its windowed mean ``ν²/R`` exceeds this times the bound.
+
+    Attributes
+    ----------
+    ukf : AttitudeUKF
+        The stacked filter: the members of model ``j`` are ``ukf.x[members[j]]`` etc.
+    members : list of slice
+        Each model's members in :attr:`ukf`.
     """
 
     def __init__(
@@ -104,7 +118,9 @@ class MultipleModelBank:
             raise ValueError("one filter per model name, at least one")
         if not 0.0 <= floor * len(filters) < 1.0:
             raise ValueError(f"probability floor {floor} is too large for {len(filters)} models")
-        self.filters = list(filters)
+        self.ukf = AttitudeUKF.stack(filters)
+        bounds = np.cumsum([0, *(len(f) for f in filters)])
+        self.members = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
         self.names = list(names)
         self.floor = float(floor)
         self.window = int(window)
@@ -126,21 +142,40 @@ class MultipleModelBank:
         self._misfit: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
 
     def __len__(self) -> int:
-        return len(self.filters)
+        return len(self.members)
 
     def _floored(self, p: np.ndarray) -> np.ndarray:
         p = p / p.sum()
         p = np.maximum(p, self.floor)
         return p / p.sum()
 
+    def hypotheses(self, model: int) -> int:
+        """Number of hypotheses (members) of a model."""
+        s = self.members[model]
+        return s.stop - s.start
+
     def leader(self, model: int) -> int:
-        """Index of the heaviest hypothesis of a model."""
+        """Index of the heaviest hypothesis of a model (within the model)."""
         return int(np.argmax(self.log_weights[model]))
 
     def predict(self, dt: float) -> None:
         """Propagate every model's filter over ``dt`` seconds."""
-        for f in self.filters:
-            f.predict(dt)
+        self.ukf.predict(dt)
+
+    def _stacked(self, hx: Sequence[Measurement]) -> Measurement:
+        """One measurement function over the stacked members from one per model."""
+        if len(hx) != len(self):
+            raise ValueError(f"one measurement function per model ({len(self)}), got {len(hx)}")
+
+        def stacked(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
+            return np.concatenate(
+                [
+                    np.asarray(h(q[s], theta[s]), dtype=float).reshape(s.stop - s.start, -1)
+                    for h, s in zip(hx, self.members, strict=True)
+                ]
+            )
+
+        return stacked
 
     def update(
         self, z: float, r: float, hx: Sequence[Measurement], use: bool = True
@@ -163,10 +198,9 @@ class MultipleModelBank:
             One per model (arrays over its hypotheses).
         """
         leaders = [self.leader(j) for j in range(len(self))]
-        results = [
-            f.update(z, r, h) if use else f.evaluate(z, r, h)
-            for f, h in zip(self.filters, hx, strict=True)
-        ]
+        stacked = self._stacked(hx)
+        result = self.ukf.update(z, r, stacked) if use else self.ukf.evaluate(z, r, stacked)
+        results = [_members(result, s) for s in self.members]
         if not use:
             return results
         model_log = np.full(len(self), -np.inf)
@@ -189,6 +223,11 @@ class MultipleModelBank:
                 window.append(min(nis, self.nis_cap))
                 misfit.append(min(float(res.innovation[lead]) ** 2 / r, self.nis_cap))
         return results
+
+    def evaluate(self, z: float, r: float, hx: Measurement, model: int) -> UpdateResult:
+        """Innovation statistics of one model's hypotheses for a measurement, without using
+        it (``hx`` is that model's measurement function)."""
+        return self.ukf.evaluate(z, r, hx, members=self.members[model])
 
     @property
     def windowed_nis(self) -> np.ndarray:
@@ -223,8 +262,12 @@ class MultipleModelBank:
     def estimate(self, model: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Attitude, rates and covariance of ``[δp, ω(, θ)]`` of a model's heaviest
         hypothesis."""
-        f, h = self.filters[model], self.leader(model)
-        return f.q[h], f.omega[h], f.P[h]
+        i = self.members[model].start + self.leader(model)
+        return self.ukf.q[i], self.ukf.omega[i], self.ukf.P[i]
+
+    def parameters(self, model: int) -> np.ndarray:
+        """Parameter estimates ``θ`` of a model's heaviest hypothesis."""
+        return self.ukf.params[self.members[model].start + self.leader(model)]
 
     def fused(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Probability-weighted attitude, rates and mixture covariance of ``[δp, ω]``.
@@ -246,15 +289,17 @@ class MultipleModelBank:
         """
         p = np.clip(self.probabilities - self.floor, 0.0, None)
         p = self.probabilities if p.sum() <= 0.0 else p / p.sum()
-        estimates = [self.estimate(j) for j in range(len(self))]
-        qs = np.stack([e[0] for e in estimates])
-        ws = np.stack([e[1] for e in estimates])
+        leaders = [s.start + self.leader(j) for j, s in enumerate(self.members)]
+        qs, ws, ps = self.ukf.q[leaders], self.ukf.omega[leaders], self.ukf.P[leaders, :6, :6]
         q = quaternion_mean(qs, p)
         omega = p @ ws
         dx = np.concatenate(
             [quaternion_to_grp(quaternion_multiply(qs, quaternion_conjugate(q))), ws - omega], 1
         )
-        covariance = sum(
-            pj * (e[2][:6, :6] + np.outer(d, d)) for pj, e, d in zip(p, estimates, dx, strict=True)
-        )
+        covariance = np.einsum("j,jab->ab", p, ps + dx[:, :, None] * dx[:, None, :])
         return q, omega, covariance
+
+
+def _members(result: UpdateResult, members: slice) -> UpdateResult:
+    """The part of an update's outcome that belongs to some members."""
+    return UpdateResult(*(getattr(result, f.name)[members] for f in fields(result)))

@@ -396,21 +396,23 @@ def torque_free_trajectory(
     if not isinstance(inertia, PrincipalInertia):
         inertia = PrincipalInertia.from_inertia(inertia)
     if isinstance(q, np.ndarray) or not hasattr(q, "requires_grad"):
-        return _trajectory(
-            np.asarray(q, dtype=float), np.asarray(omega, dtype=float), offsets, inertia, max_step
-        )
-    import torch
-
-    if q.requires_grad or omega.requires_grad or q.device.type != "cpu":
+        q, omega = np.asarray(q, dtype=float), np.asarray(omega, dtype=float)
+    elif q.requires_grad or omega.requires_grad or q.device.type != "cpu":
         return _trajectory(q, omega, offsets, inertia, max_step)
-    q_np, w_np = _trajectory(
-        q.numpy().astype(float, copy=False),
-        omega.numpy().astype(float, copy=False),
-        offsets,
-        inertia,
-        max_step,
-    )
-    return torch.from_numpy(q_np).to(q.dtype), torch.from_numpy(w_np).to(q.dtype)
+    else:
+        import torch
+
+        q_np, w_np = torque_free_trajectory(
+            q.numpy().astype(float, copy=False),
+            omega.numpy().astype(float, copy=False),
+            offsets,
+            inertia,
+            max_step,
+        )
+        return torch.from_numpy(q_np).to(q.dtype), torch.from_numpy(w_np).to(q.dtype)
+    # Runaway states (a trial step of a least-squares fit) overflow to NaN, as in torch.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _trajectory(q, omega, offsets, inertia, max_step)
 
 
 def _numpy(array: Any) -> np.ndarray:
