@@ -47,6 +47,7 @@ from filters.attitude import (
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
+    ratios_from_tanh,
     rotation_vector_to_quaternion,
     torque_free_trajectory,
 )
@@ -216,7 +217,7 @@ class BatchProblem:
     max_step: float = 4.0
     dtype: torch.dtype = torch.float64
     _principal: PrincipalInertia = field(init=False, repr=False)
-    _tanh_axes: np.ndarray = field(init=False, repr=False)
+    _tanh_frames: PrincipalInertia = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, dtype=float)
@@ -226,7 +227,7 @@ class BatchProblem:
             raise ValueError("times must be non-decreasing")
         self._principal = PrincipalInertia.from_inertia(np.stack(self.inertias))
         axes = self.principal_axes or [np.eye(3)] * len(self.inertias)
-        self._tanh_axes = np.stack(axes)
+        self._tanh_frames = PrincipalInertia.from_tanh(np.zeros(2), np.stack(axes))
 
     @property
     def n_params(self) -> int:
@@ -273,7 +274,8 @@ class BatchProblem:
             shared = bool((rows == rows[0]).all())
             inertia = self._principal.select(rows[0] if shared else rows)
         else:
-            inertia = PrincipalInertia.from_tanh(k, self._tanh_axes[rows])
+            frames = self._tanh_frames.select(rows)
+            inertia = frames._replace(ratios=ratios_from_tanh(k.detach().numpy()))
         offsets = self.times[np.asarray(epochs)] - t_start
         q, _ = torque_free_trajectory(q0, omega0, offsets, inertia, self.max_step)
         return q

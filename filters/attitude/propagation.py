@@ -312,6 +312,9 @@ class PrincipalInertia(NamedTuple):
 
     @classmethod
     def _of(cls, axes: np.ndarray, ratios: np.ndarray) -> PrincipalInertia:
+        batch = np.broadcast_shapes(axes.shape[:-2], ratios.shape[:-1])
+        axes = np.broadcast_to(axes, (*batch, 3, 3)).copy()
+        ratios = np.broadcast_to(ratios, (*batch, 3)).copy()
         return cls(axes, ratios, quaternion_from_matrix(np.swapaxes(axes, -1, -2)))
 
     def select(self, index: Any) -> PrincipalInertia:
