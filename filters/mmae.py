@@ -51,7 +51,6 @@ from dataclasses import fields
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
 from filters.attitude import (
     quaternion_conjugate,
@@ -128,14 +127,16 @@ class MultipleModelBank:
         self.bound = chi2_band(1, self.window, 1.0 - 2.0 * (1.0 - level))[1]
         if log_prior is None:
             log_prior = [np.zeros(len(f)) for f in filters]
-        self.log_weights = []
-        model_log = []
-        for f, lp in zip(filters, log_prior, strict=True):
-            lp = np.broadcast_to(np.asarray(lp, dtype=float), (len(f),))
-            total = logsumexp(lp)
-            self.log_weights.append(lp - total)
-            model_log.append(total)
-        model_log = np.asarray(model_log)
+        self._model = np.repeat(np.arange(len(filters)), [len(f) for f in filters])
+        self._starts = bounds[:-1]
+        joint = np.concatenate(
+            [
+                np.broadcast_to(np.asarray(lp, dtype=float), (len(f),))
+                for f, lp in zip(filters, log_prior, strict=True)
+            ]
+        )
+        model_log = self._model_log(joint)
+        self._log_w = joint - model_log[self._model]
         self.probabilities = self._floored(np.exp(model_log - np.max(model_log)))
         self.residual_factor = float(residual_factor)
         self._nis: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
@@ -149,6 +150,18 @@ class MultipleModelBank:
         p = np.maximum(p, self.floor)
         return p / p.sum()
 
+    @property
+    def log_weights(self) -> list[np.ndarray]:
+        """Log-weights of every model's hypotheses (each list entry log-sums to 0)."""
+        return [self._log_w[s] for s in self.members]
+
+    def _model_log(self, joint: np.ndarray) -> np.ndarray:
+        """``log Σ_h exp(joint_h)`` over each model's hypotheses (−inf for none finite)."""
+        peak = np.maximum.reduceat(joint, self._starts)
+        peak = np.where(np.isfinite(peak), peak, 0.0)
+        with np.errstate(divide="ignore"):
+            return peak + np.log(np.add.reduceat(np.exp(joint - peak[self._model]), self._starts))
+
     def hypotheses(self, model: int) -> int:
         """Number of hypotheses (members) of a model."""
         s = self.members[model]
@@ -156,7 +169,7 @@ class MultipleModelBank:
 
     def leader(self, model: int) -> int:
         """Index of the heaviest hypothesis of a model (within the model)."""
-        return int(np.argmax(self.log_weights[model]))
+        return int(np.argmax(self._log_w[self.members[model]]))
 
     def predict(self, dt: float) -> None:
         """Propagate every model's filter over ``dt`` seconds."""
@@ -203,14 +216,13 @@ class MultipleModelBank:
         results = [_members(result, s) for s in self.members]
         if not use:
             return results
-        model_log = np.full(len(self), -np.inf)
-        for j, res in enumerate(results):
-            log_l = np.nan_to_num(res.log_likelihood, nan=-np.inf)
-            if not np.isfinite(log_l).any():
-                continue
-            joint = self.log_weights[j] + log_l
-            model_log[j] = logsumexp(joint)
-            self.log_weights[j] = joint - model_log[j]
+        log_l = np.nan_to_num(result.log_likelihood, nan=-np.inf)
+        model_log = self._model_log(self._log_w + log_l)
+        informed = np.logical_or.reduceat(np.isfinite(log_l), self._starts)
+        model_log = np.where(informed, model_log, -np.inf)
+        self._log_w = np.where(
+            informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
+        )
         if np.isfinite(model_log).any():
             with np.errstate(divide="ignore"):
                 log_post = np.log(self.probabilities) + model_log
