@@ -148,6 +148,12 @@ class InversionOptions:
         this fraction (see :func:`filters.global_search.global_search`): with a truth
         outside the bank every round fits poorly, and further rounds cost time without
         changing the answer. The PF's search runs all its rounds while the fit is poor.
+    search_contention : float
+        MMAE search: a shape whose best fit of a window is worse than this many times the
+        best shape's (``χ²``, or the window's number of measurements if larger) goes on
+        with ``hypotheses`` candidates and no twins (see
+        :func:`filters.global_search.global_search`); ``inf`` gives every shape the full
+        schedule.
     max_epochs : int
         Measurements per refinement window, at least.
     max_sample_rotation_deg : float
@@ -222,6 +228,7 @@ class InversionOptions:
     search_tolerance: float = 0.0
     search_rounds: int = 3
     search_min_improvement: float = 0.1
+    search_contention: float = 10.0
     max_epochs: int = 90
     max_sample_rotation_deg: float = 20.0
     process_noise_attitude: float = 1e-12
@@ -515,6 +522,7 @@ def _search(
         rounds=ctx.options.search_rounds,
         min_improvement=0.0 if for_pf else ctx.options.search_min_improvement,
         per_shape=per_shape,
+        contention=ctx.options.search_contention,
         progress=lambda message: ctx.report(0.0, message),
     )
     result.shape = np.asarray(shapes)[result.shape]
