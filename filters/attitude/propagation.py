@@ -444,23 +444,50 @@ def _trajectory(
     q_c = _left_multiply(r, _components(q, batch, xp))
     w_c = _components(omega, batch, xp)
     w_c = _mat_vec(frame[[0, 3, 6, 1, 4, 7, 2, 5, 8]], w_c)
+    if xp is not _NUMPY_NAMESPACE:  # torch (autograd, GPU): one block, stacked
+        states = _chains(q_c, w_c, p, offsets, max_step)
+        q_p = xp.stack([s[0] for s in states], axis=1)
+        w_p = xp.stack([s[1] for s in states], axis=1)
+    else:
+        # Column blocks small enough for the kernel's temporaries to stay in cache
+        # (measured 2.5× faster than one block of 12 288 states).
+        m = q_c.shape[1]
+        q_p = np.empty((4, len(offsets), m))
+        w_p = np.empty((3, len(offsets), m))
+        for a in range(0, m, _BLOCK):
+            b = min(a + _BLOCK, m)
+            block_p = p[:, a:b] if p.shape[1] > 1 else p
+            for i, (qq, ww) in enumerate(
+                _chains(q_c[:, a:b], w_c[:, a:b], block_p, offsets, max_step)
+            ):
+                q_p[:, i, a:b], w_p[:, i, a:b] = qq, ww
+    # (c, E, M), back in the body frame (q = r⁻¹ ⊗ q_P, ω = P ω_P), then (..., E, c).
+    q_out = _left_multiply(xp.concat([-r[:3], r[3:]]), q_p)
+    w_out = _mat_vec(frame, w_p)
+    return _from_components(q_out, batch, xp), _from_components(w_out, batch, xp)
+
+
+#: States per column block of the numpy kernel.
+_BLOCK = 2048
+_NUMPY_NAMESPACE = as_arrays(np.zeros(1))[0]
+
+
+def _chains(q: Any, w: Any, p: Any, offsets: np.ndarray, max_step: float) -> list[tuple]:
+    """Principal-frame component states ``(q (4, M), ω (3, M))`` at every offset: one RK4
+    chain through the non-negative offsets in increasing order, one backwards through the
+    negative ones, each interval in ``ceil(|Δt|/max_step)`` equal steps."""
     order = np.argsort(offsets, kind="stable")
-    chains = (order[offsets[order] >= 0], order[offsets[order] < 0][::-1])
-    q_all: list[Any] = [None] * len(offsets)
-    w_all: list[Any] = [None] * len(offsets)
-    for chain in chains:
-        qq, ww, t = q_c, w_c, 0.0
+    states: list[Any] = [None] * len(offsets)
+    for chain in (order[offsets[order] >= 0], order[offsets[order] < 0][::-1]):
+        qq, ww, t = q, w, 0.0
         for i in chain:
             dt = float(offsets[i]) - t
             steps = math.ceil(abs(dt) / max_step)
             for _ in range(steps):
                 qq, ww = _rk4_principal(qq, ww, p, dt / steps)
             t = float(offsets[i])
-            q_all[i], w_all[i] = qq, ww
-    # (c, E, M), back in the body frame (q = r⁻¹ ⊗ q_P, ω = P ω_P), then (..., E, c).
-    q_out = _left_multiply(xp.concat([-r[:3], r[3:]]), xp.stack(q_all, axis=1))
-    w_out = _mat_vec(frame, xp.stack(w_all, axis=1))
-    return _from_components(q_out, batch, xp), _from_components(w_out, batch, xp)
+            states[i] = (qq, ww)
+    return states
 
 
 def _components(x: Any, batch: tuple[int, ...], xp: Any) -> Any:
