@@ -7,6 +7,8 @@ particle-filter speed study (acceptance 5). Prints JSON.
     python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # acceptance 3
     python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # acceptance 3, box modes
     python -m benchmarks.inversion speed                               # acceptance 5
+    python -m benchmarks.inversion main-job [--files box_wing_tumbling,...]  # README job
+    python -m benchmarks.inversion propagation                         # RK4 kernels
 
 Scenarios (:mod:`lightcurve.inversion_study`): a geostationary object seen from Mount
 Lemmon on 2024-06-21 from 04:00 UTC, 1 Hz, Gaussian noise 0.05 mag, 20 min; run ``i``
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 
@@ -112,9 +115,92 @@ def speed(particles: list[int], updates: int, seed: int, components: int = 12) -
     }
 
 
+def main_job(files: list[str]) -> dict:
+    """The README main job file by file in this process (one torch thread): CPU and wall
+    time, shape, probability and the errors against the files' truth columns."""
+    from lightcurve import io
+    from lightcurve.inversion import invert, shape_symmetry
+    from lightcurve.inversion_study import final_errors
+
+    library = get_library()
+    shapes = {
+        n: library.load(n) for n in ("box_wing", "rocket_body", "box", "cylinder", "plate", "cube")
+    }
+    rows = []
+    for name in files:
+        observations = io.read(f"data/observations/{name}.csv")
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = invert(observations, shapes, method="mmae")
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        truth = observations.meta["shape"]
+        errors = final_errors(result, observations, shape_symmetry(shapes[truth]))
+        rows.append(
+            {
+                "file": name,
+                "cpu_s": cpu,
+                "wall_s": wall,
+                "shape": result.shape,
+                "probability": result.shape_probabilities[result.shape],
+                "none_fits": result.none_fits,
+                "residual_rms_mag": result.residual_rms_mag,
+                **errors,
+            }
+        )
+    return {"study": "main-job", "rows": rows}
+
+
+def propagation(states: int = 3072, epochs: int = 90, repeats: int = 3) -> dict:
+    """A search window's trajectory (``states`` × ``epochs`` 3.3 s apart) by
+    :func:`filters.attitude.torque_free_trajectory` against the baseline, a chain of the
+    core's RK4 steps (:func:`filters.attitude.rk4_step`), in the same run."""
+    from filters.attitude import (
+        random_quaternion,
+        rk4_step,
+        torque_free_derivative,
+        torque_free_trajectory,
+    )
+
+    rng = np.random.default_rng(0)
+    q = random_quaternion(states, rng)
+    omega = rng.normal(0.0, 0.03, (states, 3))
+    inertia = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
+    offsets = 3.3 * np.arange(1, epochs + 1)
+
+    def baseline() -> np.ndarray:
+        x, f, out = np.concatenate([q, omega], axis=1), torque_free_derivative(inertia), []
+        for _ in offsets:
+            x = rk4_step(f, x, 3.3)
+            out.append(x[:, :4])
+        return np.stack(out, axis=1)
+
+    def fast() -> np.ndarray:
+        return torque_free_trajectory(q, omega, offsets, inertia, 4.0)[0]
+
+    times = {}
+    for label, run in (("baseline_rk4_step_chain", baseline), ("torque_free_trajectory", fast)):
+        best = math.inf
+        for _ in range(repeats):
+            start = time.process_time()
+            run()
+            best = min(best, time.process_time() - start)
+        times[label] = best
+    difference = float(np.max(np.abs(baseline() - fast())))
+    return {
+        "study": "propagation",
+        "states": states,
+        "epochs": epochs,
+        "cpu_s": times,
+        "speed_up": times["baseline_rk4_step_chain"] / times["torque_free_trajectory"],
+        "max_abs_difference": difference,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("study", choices=["ukf", "mmae", "mmae-outside", "pf", "pf-box", "speed"])
+    parser.add_argument(
+        "study",
+        choices=["ukf", "mmae", "mmae-outside", "pf", "pf-box", "speed", "main-job", "propagation"],
+    )
     parser.add_argument("--runs", type=int, help="Monte Carlo runs (default per study)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
@@ -131,6 +217,11 @@ def main(argv: list[str] | None = None) -> int:
         "--extra",
         default="itokawa,bennu",
         help="mmae-outside: shapes added to the five other satellites (comma-separated)",
+    )
+    parser.add_argument(
+        "--files",
+        default="box_wing_tumbling,rocket_body_tumbling,box_tumbling_ccd",
+        help="main-job: files of data/observations (stems, comma-separated)",
     )
     parser.add_argument("--out", help="also write the JSON here")
     parser.add_argument("-v", "--verbose", action="store_true", help="print every run")
@@ -189,6 +280,10 @@ def main(argv: list[str] | None = None) -> int:
             progress=progress,
             first=args.first_run,
         )
+    elif args.study == "main-job":
+        result = main_job(args.files.split(","))
+    elif args.study == "propagation":
+        result = propagation()
     else:
         result = speed([1_000, 3_000, 10_000, 30_000, 100_000], 20, args.seed, args.components)
     result["runtime_s"] = time.perf_counter() - start

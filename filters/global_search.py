@@ -31,29 +31,32 @@ measurements and their 1σ errors, and the inertia of each shape.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
 
 from filters.attitude import (
+    PrincipalInertia,
     attitude_angle,
     attitude_matrix,
-    inertia_from_tanh,
-    propagate_torque_free,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_rotation_vector,
+    ratios_from_tanh,
     rotation_vector_to_quaternion,
+    torque_free_trajectory,
 )
 from filters.linalg import covariance_root
 from filters.symmetry import SymmetryGroup
 
 __all__ = [
     "BatchProblem",
+    "Candidates",
     "Prior",
     "SearchResult",
     "distinct_states",
@@ -69,6 +72,10 @@ __all__ = [
 
 #: ``measure(q (N, E, 4), epochs (E,), shape (N,)) → (N, E)`` predicted measurements.
 Measure = Callable[[torch.Tensor, np.ndarray, torch.Tensor], torch.Tensor]
+#: A number of candidates, shared by every shape index or one per shape index.
+Count = int | np.ndarray
+#: ``twins(q, ω, shape) → [(q', ω', has_twin), …]`` (numpy), one triple per kind of twin.
+Twins = Callable[[np.ndarray, np.ndarray, np.ndarray], Sequence[tuple]]
 
 
 def uniform_rates(n: int, omega_max: float, rng: np.random.Generator) -> np.ndarray:
@@ -211,9 +218,8 @@ class BatchProblem:
     estimate_inertia: bool = False
     max_step: float = 4.0
     dtype: torch.dtype = torch.float64
-    _inertia: torch.Tensor = field(init=False, repr=False)
-    _inverse: torch.Tensor = field(init=False, repr=False)
-    _axes: torch.Tensor = field(init=False, repr=False)
+    _principal: PrincipalInertia = field(init=False, repr=False)
+    _tanh_frames: PrincipalInertia = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, dtype=float)
@@ -221,10 +227,9 @@ class BatchProblem:
         self.sigma = np.asarray(self.sigma, dtype=float)
         if np.any(np.diff(self.times) < 0):
             raise ValueError("times must be non-decreasing")
-        self._inertia = torch.as_tensor(np.stack(self.inertias), dtype=self.dtype)
-        self._inverse = torch.linalg.inv(self._inertia)
+        self._principal = PrincipalInertia.from_inertia(np.stack(self.inertias))
         axes = self.principal_axes or [np.eye(3)] * len(self.inertias)
-        self._axes = torch.as_tensor(np.stack(axes), dtype=self.dtype)
+        self._tanh_frames = PrincipalInertia.from_tanh(np.zeros(2), np.stack(axes))
 
     @property
     def n_params(self) -> int:
@@ -266,27 +271,16 @@ class BatchProblem:
         -------
         (N, E, 4) tensor
         """
+        rows = shape.numpy()
         if k is None:
-            inertia = self._inertia[shape]
-            inverse = self._inverse[shape]
-            if bool((shape == shape[0]).all()):
-                inertia, inverse = inertia[0], inverse[0]  # shared: one GEMM per derivative
+            shared = bool((rows == rows[0]).all())
+            inertia = self._principal.select(rows[0] if shared else rows)
         else:
-            axes = self._axes[shape]
-            inertia = axes @ inertia_from_tanh(k) @ axes.transpose(-1, -2)
-            inverse = torch.linalg.inv(inertia)
-        epochs = np.asarray(epochs)
-        offsets = self.times[epochs] - t_start
-        out: list[Any] = [None] * len(epochs)
-        for chain in (np.flatnonzero(offsets >= 0), np.flatnonzero(offsets < 0)[::-1]):
-            q, w, t = q0, omega0, 0.0
-            for i in chain[np.argsort(np.abs(offsets[chain]), kind="stable")]:
-                q, w = propagate_torque_free(
-                    q, w, inertia, float(offsets[i] - t), self.max_step, inverse
-                )
-                t = float(offsets[i])
-                out[i] = q
-        return torch.stack(out, dim=1)
+            frames = self._tanh_frames.select(rows)
+            inertia = frames._replace(ratios=ratios_from_tanh(k.detach().numpy()))
+        offsets = self.times[np.asarray(epochs)] - t_start
+        q, _ = torque_free_trajectory(q0, omega0, offsets, inertia, self.max_step)
+        return q
 
     def residuals_of(self, q: torch.Tensor, shape: torch.Tensor, epochs: Any) -> torch.Tensor:
         """Normalised residuals ``(m̂ − m)/σ`` of attitudes ``q (N, E, 4)``, shape (N, E)."""
@@ -338,17 +332,81 @@ class SearchResult:
         return len(self.chi2)
 
 
-def _best(cost: torch.Tensor, shape: torch.Tensor, count: int, per_shape: bool) -> torch.Tensor:
-    """Indices of the ``count`` lowest costs, overall or for every shape index; equal costs
-    keep candidate order (stable sorts here and below: an unstable sort leaves the order of
-    ties to the sorting kernel of the processor)."""
+@dataclass
+class Candidates:
+    """A batch of candidate states at one epoch: torch tensors, one row per candidate.
+
+    Attributes
+    ----------
+    q : (N, 4) tensor
+        Attitudes (inertial → body).
+    omega : (N, 3) tensor
+        Body rates (rad/s).
+    shape : (N,) long tensor
+        Shape index.
+    k : (N, 2) tensor or None
+        Tanh inertia parameters (with ``estimate_inertia``).
+    chi2 : (N,) tensor or None
+        ``Σ r²`` of the last fit (prior rows included); None before any fit.
+    covariance : (N, p, p) tensor or None
+        Gauss–Newton covariance of ``[η, ω(, k)]`` at the last fit.
+    """
+
+    q: torch.Tensor
+    omega: torch.Tensor
+    shape: torch.Tensor
+    k: torch.Tensor | None = None
+    chi2: torch.Tensor | None = None
+    covariance: torch.Tensor | None = None
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    @property
+    def params(self) -> torch.Tensor:
+        """``[ω(, k)]``, shape (N, p − 3)."""
+        return self.omega if self.k is None else torch.cat([self.omega, self.k], dim=1)
+
+    def take(self, index: Any) -> Candidates:
+        """The candidates selected by an index tensor, slice or mask."""
+        return Candidates(
+            **{
+                f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
+                for f in fields(self)
+            }
+        )
+
+    @classmethod
+    def concat(cls, parts: Sequence[Candidates]) -> Candidates:
+        """The candidates of several batches, in order (a field missing in any batch is
+        dropped)."""
+        return cls(
+            **{
+                f.name: None
+                if any(getattr(p, f.name) is None for p in parts)
+                else torch.cat([getattr(p, f.name) for p in parts])
+                for f in fields(cls)
+            }
+        )
+
+
+def _best(cost: torch.Tensor, shape: torch.Tensor, count: Count, per_shape: bool) -> torch.Tensor:
+    """Indices of the ``count`` lowest costs, overall or for every shape index (``count``
+    may then be an array over the shape indices). Equal costs keep candidate order (stable
+    sorts here and below: an unstable sort leaves the order of ties to the sorting kernel of
+    the processor)."""
     if not per_shape:
         return torch.argsort(cost, stable=True)[:count]
     picks = []
     for s in torch.unique(shape):
         rows = torch.nonzero(shape == s).flatten()
-        picks.append(rows[torch.argsort(cost[rows], stable=True)[:count]])
+        picks.append(rows[torch.argsort(cost[rows], stable=True)[: _count(count, s)]])
     return torch.cat(picks)
+
+
+def _count(count: Count, shape: Any) -> int:
+    """The count of one shape index from a count shared by all or one per shape."""
+    return int(count) if np.ndim(count) == 0 else int(count[int(shape)])
 
 
 def _robust_cost(r: torch.Tensor, nu: float) -> torch.Tensor:
@@ -363,14 +421,10 @@ def uniform_candidates(
     rng: np.random.Generator,
     n_shapes: int = 1,
     k_range: float = 1.5,
-) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor]:
+) -> Candidates:
     """Candidates uniform on SO(3), in the rate ball ``|ω| ≤ omega_max``, over the shapes
     (and in ``[−k_range, k_range]²`` for the tanh inertia when it is estimated), from a
     scrambled Sobol' sequence (:func:`low_discrepancy_states`).
-
-    Returns
-    -------
-    q0 (n, 4), omega0 (n, 3), k (n, 2) or None, shape (n,) : tensors
     """
     extra = 3 if problem.estimate_inertia else 1
     q, w, u = low_discrepancy_states(n, omega_max, rng, extra)
@@ -378,11 +432,11 @@ def uniform_candidates(
     k = None
     if problem.estimate_inertia:
         k = torch.as_tensor(k_range * (2.0 * u[:, 1:3] - 1.0), dtype=problem.dtype)
-    return (
-        torch.as_tensor(q, dtype=problem.dtype),
-        torch.as_tensor(w, dtype=problem.dtype),
-        k,
-        shape,
+    return Candidates(
+        q=torch.as_tensor(q, dtype=problem.dtype),
+        omega=torch.as_tensor(w, dtype=problem.dtype),
+        shape=shape,
+        k=k,
     )
 
 
@@ -393,30 +447,29 @@ def prior_candidates(
     rng: np.random.Generator,
     shapes: Sequence[int] = (0,),
     k: Any = None,
-) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor]:
-    """``n`` draws from a Gaussian prior for each listed shape (the prior mean first).
-
-    Returns
-    -------
-    q0, omega0, k, shape : tensors (``n · len(shapes)`` rows)
-    """
+) -> Candidates:
+    """``n`` draws from a Gaussian prior for each listed shape (the prior mean first),
+    ``n · len(shapes)`` candidates."""
     q, w = prior.sample(n, rng)
     rows = len(shapes) * n
-    q = torch.as_tensor(np.tile(q, (len(shapes), 1)), dtype=problem.dtype)
-    w = torch.as_tensor(np.tile(w, (len(shapes), 1)), dtype=problem.dtype)
-    shape = torch.as_tensor(np.repeat(np.asarray(shapes), n), dtype=torch.long)
     kk = None
     if problem.estimate_inertia:
         k0 = np.zeros(2) if k is None else np.asarray(k, float)
         kk = torch.as_tensor(np.broadcast_to(k0, (rows, 2)).copy(), dtype=problem.dtype)
-    return q, w, kk, shape
+    return Candidates(
+        q=torch.as_tensor(np.tile(q, (len(shapes), 1)), dtype=problem.dtype),
+        omega=torch.as_tensor(np.tile(w, (len(shapes), 1)), dtype=problem.dtype),
+        shape=torch.as_tensor(np.repeat(np.asarray(shapes), n), dtype=torch.long),
+        k=kk,
+    )
 
 
 def screen(
     problem: BatchProblem,
-    candidates: tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor],
+    candidates: Candidates,
     duration: float,
     keep: int,
+    *,
     stages: Sequence[int] = (8, 24),
     fraction: float = 0.1,
     batch: int = 8192,
@@ -424,7 +477,7 @@ def screen(
     prior: Prior | None = None,
     tolerance: float = 0.0,
     per_shape: bool = False,
-) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor]:
+) -> Candidates:
     """Successive screening: returns the ``keep`` candidates of lowest misfit.
 
     Stage ``i`` evaluates the survivors on ``stages[i]`` epochs spread over ``duration``
@@ -437,8 +490,8 @@ def screen(
     Parameters
     ----------
     problem : BatchProblem
-    candidates : tuple of tensors
-        ``(q0, omega0, k, shape)`` as from :func:`uniform_candidates`.
+    candidates : Candidates
+        As from :func:`uniform_candidates`.
     duration : float
         Window (s).
     keep : int
@@ -450,31 +503,28 @@ def screen(
 
     Returns
     -------
-    q0, omega0, k, shape : tensors
+    Candidates
     """
-    q, w, k, shape = candidates
     for i, n_epochs in enumerate(stages):
         epochs = problem.window(duration, n_epochs)
         costs = []
-        for s in range(0, len(q), batch):
-            part = slice(s, s + batch)
-            kk = None if k is None else k[part]
-            r = problem.residuals(q[part], w[part], kk, shape[part], epochs)
+        for s in range(0, len(candidates), batch):
+            part = candidates.take(slice(s, s + batch))
+            r = problem.residuals(part.q, part.omega, part.k, part.shape, epochs)
             if tolerance > 0.0:
                 sigma = problem.sigma[epochs]
                 r = r * torch.as_tensor(sigma / np.sqrt(sigma**2 + tolerance**2), dtype=r.dtype)
             cost = _robust_cost(r, nu)
             if prior is not None:
-                cost = cost + 0.5 * (prior.residuals(q[part], w[part]) ** 2).sum(dim=1)
+                cost = cost + 0.5 * (prior.residuals(part.q, part.omega) ** 2).sum(dim=1)
             costs.append(cost)
         cost = torch.nan_to_num(torch.cat(costs), nan=math.inf)
-        survivors = keep if i == len(stages) - 1 else max(keep, int(len(q) * fraction))
+        survivors = keep if i == len(stages) - 1 else max(keep, int(len(candidates) * fraction))
         if per_shape and i < len(stages) - 1:
-            survivors = max(keep, int(len(q) * fraction / max(1, len(torch.unique(shape)))))
-        best = _best(cost, shape, survivors, per_shape)
-        q, w, shape = q[best], w[best], shape[best]
-        k = None if k is None else k[best]
-    return q, w, k, shape
+            shapes = max(1, len(torch.unique(candidates.shape)))
+            survivors = max(keep, int(len(candidates) * fraction / shapes))
+        candidates = candidates.take(_best(cost, candidates.shape, survivors, per_shape))
+    return candidates
 
 
 def residual_jacobian(
@@ -555,16 +605,14 @@ def residual_jacobian(
 
 def refine(
     problem: BatchProblem,
-    q0: torch.Tensor,
-    omega0: torch.Tensor,
-    k: Any,
-    shape: torch.Tensor,
+    candidates: Candidates,
     epochs: np.ndarray,
+    *,
     iterations: int = 15,
     damping: float = 1e-2,
     prior: Prior | None = None,
     t_start: float = 0.0,
-) -> tuple[torch.Tensor, torch.Tensor, Any, torch.Tensor, torch.Tensor]:
+) -> Candidates:
     """Batched Levenberg–Marquardt on ``[η, ω(, k)]`` (maximum a posteriori with a prior),
     Jacobians from :func:`residual_jacobian`; each accepted step turns the attitude,
     ``q₀ ← exp(Δη) ⊗ q₀``.
@@ -572,8 +620,8 @@ def refine(
     Parameters
     ----------
     problem : BatchProblem
-    q0, omega0, k, shape : tensors
-        Starting candidates (N of them).
+    candidates : Candidates
+        Starting states (N of them).
     epochs : (E,) int array
         Measurement indices of the window.
     iterations : int
@@ -589,18 +637,16 @@ def refine(
 
     Returns
     -------
-    q0, omega0, k : tensors
-        Refined candidates.
-    chi2 : (N,) tensor
-        ``Σ r²`` on the window (prior term included).
-    covariance : (N, p, p) tensor
-        ``(JᵀJ)⁻¹`` of ``[η (rad, body frame), ω(, k)]`` at the solution (the posterior
-        covariance with a prior).
+    Candidates
+        The refined states with ``chi2`` (``Σ r²`` on the window, prior term included) and
+        ``covariance`` (``(JᵀJ)⁻¹`` of ``[η (rad, body frame), ω(, k)]`` at the solution,
+        the posterior covariance with a prior).
     """
-    n = len(q0)
-    q = q0.detach().clone()
-    v = omega0.detach() if k is None else torch.cat([omega0.detach(), k.detach()], dim=1)
-    mu = torch.full((n,), damping, dtype=q0.dtype)
+    shape = candidates.shape
+    n = len(candidates)
+    q = candidates.q.detach().clone()
+    v = candidates.params.detach()
+    mu = torch.full((n,), damping, dtype=q.dtype)
     r, jac = residual_jacobian(problem, q, v, shape, epochs, prior, t_start)
     chi2 = torch.nan_to_num((r * r).sum(dim=1), nan=math.inf)
     stalled = 0
@@ -629,7 +675,14 @@ def refine(
         mu = torch.where(better, mu / 3.0, mu * 4.0).clamp(1e-9, 1e9)
         if stalled >= 2:  # no candidate improved by 10⁻⁴ of its χ² twice in a row
             break
-    return q, v[:, :3], (v[:, 3:] if v.shape[1] > 3 else None), chi2, _gauss_newton_covariance(jac)
+    return Candidates(
+        q=q,
+        omega=v[:, :3],
+        shape=shape,
+        k=v[:, 3:] if v.shape[1] > 3 else None,
+        chi2=chi2,
+        covariance=_gauss_newton_covariance(jac),
+    )
 
 
 def _gauss_newton_covariance(jac: torch.Tensor) -> torch.Tensor:
@@ -649,27 +702,29 @@ def _gauss_newton_covariance(jac: torch.Tensor) -> torch.Tensor:
     return torch.where(finite[:, None, None], covariance, uninformed)
 
 
-def _with_twins(problem, twins, q, w, k, shape, chi2, covariance, epochs, iterations, prior):
-    """Append the refined twins of the candidates (every kind ``twins`` returns) to the
-    candidate set; also returns ``1 +`` the number of kinds that any candidate has."""
-    parts = [(q, w, k, shape, chi2, covariance)]
-    for q2, w2, has in twins(q.numpy(), w.numpy(), shape.numpy()):
+def _with_twins(
+    problem: BatchProblem,
+    twins: Twins,
+    candidates: Candidates,
+    epochs: np.ndarray,
+    *,
+    iterations: int,
+    prior: Prior | None,
+) -> tuple[Candidates, int]:
+    """The candidates followed by their refined twins (every kind ``twins`` returns), and
+    ``1 +`` the number of kinds that any candidate has."""
+    parts = [candidates]
+    for q2, w2, has in twins(
+        candidates.q.numpy(), candidates.omega.numpy(), candidates.shape.numpy()
+    ):
         rows = torch.as_tensor(np.flatnonzero(has))
         if len(rows) == 0:
             continue
-        fitted = refine(
-            problem,
-            torch.as_tensor(q2[has], dtype=q.dtype),
-            torch.as_tensor(w2[has], dtype=w.dtype),
-            None if k is None else k[rows],
-            shape[rows],
-            epochs,
-            iterations,
-            prior=prior,
-        )
-        parts.append((*fitted[:3], shape[rows], *fitted[3:]))
-    merged = (None if k is None and i == 2 else torch.cat([p[i] for p in parts]) for i in range(6))
-    return (*merged, len(parts))
+        start = candidates.take(rows)
+        start.q = torch.as_tensor(q2[has], dtype=start.q.dtype)
+        start.omega = torch.as_tensor(w2[has], dtype=start.omega.dtype)
+        parts.append(refine(problem, start, epochs, iterations=iterations, prior=prior))
+    return Candidates.concat(parts), len(parts)
 
 
 def distinct_states(
@@ -692,12 +747,14 @@ def distinct_states(
     close = np.zeros((len(q), len(q)), dtype=bool)
     for s in np.unique(shape):
         rows = np.flatnonzero(shape == s)
-        a, b = q[rows][:, None], q[rows][None, :]
-        group = None if groups is None else groups[int(s)]
-        separation = attitude_angle(a, b) if group is None else group.attitude_error(a, b)
         w = omega_inertial[rows]
-        near = (separation < angle) & (np.linalg.norm(w[:, None] - w[None, :], axis=-1) < rate)
-        close[np.ix_(rows, rows)] = near
+        # The attitude test (costly modulo a group) only for the pairs of close rates.
+        i, j = np.nonzero(np.linalg.norm(w[:, None] - w[None, :], axis=-1) < rate)
+        group = None if groups is None else groups[int(s)]
+        a, b = q[rows[i]], q[rows[j]]
+        separation = attitude_angle(a, b) if group is None else group.attitude_error(a, b)
+        near = separation < angle
+        close[rows[i[near]], rows[j[near]]] = True
     duplicate = np.zeros(len(q), dtype=bool)
     kept = []
     for i in range(len(q)):
@@ -708,17 +765,15 @@ def distinct_states(
 
 
 def _best_distinct(
-    q: torch.Tensor,
-    omega: torch.Tensor,
-    shape: torch.Tensor,
-    cost: torch.Tensor,
-    count: int,
+    candidates: Candidates,
+    count: Count,
+    *,
     per_shape: bool,
     angle: float,
     rate: float,
     groups: Sequence[SymmetryGroup] | None,
 ) -> torch.Tensor:
-    """Indices of the ``count`` lowest-cost candidates (overall or for every shape index)
+    """Indices of the ``count`` lowest-χ² candidates (overall or for every shape index)
     after dropping duplicates of better ones (:func:`distinct_states`).
 
     Refined candidates collapse onto few minima: on a 120 s window, 128 survivors measured
@@ -727,32 +782,31 @@ def _best_distinct(
     63.6, ranked 25th and was lost; on the 240 s window that follows, the truth's fit is
     82.5 and the wrong one's 120.7. Keeping distinct states carries every minimum on.
     """
+    cost = candidates.chi2
     order = torch.argsort(cost, stable=True).numpy()
     unique = order[
         distinct_states(
-            q.detach().numpy()[order],
-            omega.detach().numpy()[order],
-            shape.numpy()[order],
+            candidates.q.detach().numpy()[order],
+            candidates.omega.detach().numpy()[order],
+            candidates.shape.numpy()[order],
             angle,
             rate,
             groups,
         )
     ]
     rows = torch.as_tensor(unique)
-    return rows[_best(cost[rows], shape[rows], count, per_shape)]
+    return rows[_best(cost[rows], candidates.shape[rows], count, per_shape)]
 
 
 def _replenish(
-    q: torch.Tensor,
-    v: torch.Tensor,
-    shape: torch.Tensor,
-    covariance: torch.Tensor,
-    target: int,
+    candidates: Candidates,
+    target: Count,
+    *,
     per_shape: bool,
     cap: np.ndarray,
     rng: np.random.Generator,
     scale: float = 2.0,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+) -> Candidates:
     """Fill the candidate set back up to ``target`` (per shape with ``per_shape``) with
     draws around the distinct survivors: ``x ~ N(x_i, scale² C_i)``, ``C_i`` a survivor's
     Gauss–Newton covariance of ``[η, ω(, k)]`` with every 1σ capped at ``cap``, parents
@@ -766,34 +820,97 @@ def _replenish(
 
     Returns
     -------
-    q, v, shape : tensors
-        The survivors followed by the new draws.
+    Candidates
+        The survivors followed by the new draws (without fit results).
     """
+    shape = candidates.shape
     groups = torch.unique(shape) if per_shape else torch.zeros(1, dtype=torch.long)
     draws = []
     for s in groups:
-        rows = torch.nonzero(shape == s).flatten() if per_shape else torch.arange(len(q))
-        missing = target - len(rows)
+        rows = torch.nonzero(shape == s).flatten() if per_shape else torch.arange(len(shape))
+        missing = _count(target, s) - len(rows)
         if missing <= 0 or len(rows) == 0:
             continue
         draws.append(rows[torch.arange(missing) % len(rows)])
+    survivors = dataclasses.replace(candidates, chi2=None, covariance=None)
     if not draws:
-        return q, v, shape
+        return survivors
     parents = torch.cat(draws)
-    c = covariance[parents]
+    c = candidates.covariance[parents]
     sigma = torch.sqrt(torch.diagonal(c, dim1=1, dim2=2).clamp_min(0.0))
     shrink = torch.clamp(torch.as_tensor(cap, dtype=c.dtype) / sigma.clamp_min(1e-300), max=1.0)
     c = c * shrink[:, :, None] * shrink[:, None, :]
     root = covariance_root(c)
     z = torch.as_tensor(rng.standard_normal((len(parents), c.shape[1])), dtype=c.dtype)
     delta = scale * (root @ z[..., None])[..., 0]
-    q_new = quaternion_multiply(rotation_vector_to_quaternion(delta[:, :3]), q[parents])
-    v_new = v[parents] + delta[:, 3:]
-    return torch.cat([q, q_new]), torch.cat([v, v_new]), torch.cat([shape, shape[parents]])
+    v = candidates.params[parents] + delta[:, 3:]
+    drawn = Candidates(
+        q=quaternion_multiply(rotation_vector_to_quaternion(delta[:, :3]), candidates.q[parents]),
+        omega=v[:, :3],
+        shape=shape[parents],
+        k=None if candidates.k is None else v[:, 3:],
+    )
+    return Candidates.concat([survivors, drawn])
+
+
+@dataclass(frozen=True)
+class _Schedule:
+    """Settings of a screening-and-continuation round (see :func:`global_search`)."""
+
+    n_candidates: int
+    omega_max: float
+    n_shapes: int
+    prior: Prior | None
+    screen_duration: float
+    windows: tuple[float, ...]
+    keep: tuple[int, ...]
+    max_epochs: int
+    max_rotation: float
+    iterations: int
+    tolerance: float
+    twins: Twins | None
+    per_shape: bool
+    distinct_angle: float
+    distinct_rate: float
+    groups: Sequence[SymmetryGroup] | None
+    contention: float
+
+    def best_distinct(self, candidates: Candidates, count: Count) -> torch.Tensor:
+        """:func:`_best_distinct` with this schedule's settings."""
+        return _best_distinct(
+            candidates,
+            count,
+            per_shape=self.per_shape,
+            angle=self.distinct_angle,
+            rate=self.distinct_rate,
+            groups=self.groups,
+        )
+
+
+def _contending(
+    candidates: Candidates, prior: Prior, n_epochs: int, ratio: float, n_shapes: int
+) -> np.ndarray:
+    """Shapes whose best data χ² is within ``ratio`` times the best shape's (or times
+    ``n_epochs``, if larger), shape (n_shapes,)."""
+    data = (candidates.chi2 - (prior.residuals(candidates.q, candidates.omega) ** 2).sum(1)).numpy()
+    best = np.full(n_shapes, np.inf)
+    np.minimum.at(best, candidates.shape.numpy(), np.nan_to_num(data, nan=np.inf))
+    return best <= ratio * max(float(best.min()), n_epochs)
+
+
+class _Round(NamedTuple):
+    """One round's refined candidates (on the last window), that window's epochs, the
+    number of candidates screened and the data part of χ²."""
+
+    candidates: Candidates
+    epochs: np.ndarray
+    screened: int
+    chi2_data: torch.Tensor
 
 
 def global_search(
     problem: BatchProblem,
+    *,
     n_candidates: int = 20_000,
     omega_max: float = math.radians(5.0),
     n_shapes: int = 1,
@@ -806,7 +923,7 @@ def global_search(
     max_rotation: float = math.radians(20.0),
     iterations: int = 15,
     tolerance: float = 0.0,
-    twins: Callable[[np.ndarray, np.ndarray, np.ndarray], Sequence[tuple]] | None = None,
+    twins: Twins | None = None,
     rounds: int = 1,
     good_fit: float = 2.0,
     min_improvement: float = 0.0,
@@ -814,6 +931,7 @@ def global_search(
     distinct_angle: float = math.radians(3.0),
     distinct_rate: float = math.radians(0.05),
     groups: Sequence[SymmetryGroup] | None = None,
+    contention: float = math.inf,
     progress: Callable[[str], None] | None = None,
 ) -> SearchResult:
     """Screen initial states, refine the best by batched LM with continuation.
@@ -880,6 +998,15 @@ def global_search(
     groups : sequence of SymmetryGroup, optional
         Rotational symmetry group of each shape index: symmetry-equivalent candidates are
         duplicates (:func:`distinct_states`).
+    contention : float
+        With ``per_shape``: a shape whose best data ``χ²`` on a window exceeds this times
+        the best shape's (or times the window's ``E`` measurements, if larger) is out of
+        contention for the rest of the round: it goes on with ``keep[-1]`` candidates and
+        no twins, enough to give a bank its fits while the shapes that can fit the data
+        get the effort. On the rocket body's 10-min light curve of the README main job,
+        three of six shapes are out after the 30 s window (best χ² 1.2·10⁴–7·10⁴ against
+        21 on 30 measurements) and five after the 120 s window (1.2·10⁴ and more against
+        79 on 90). ``inf`` (the default) keeps every shape in.
     progress : callable, optional
         Receives a short message after each stage.
 
@@ -889,99 +1016,100 @@ def global_search(
         Distinct candidates of all rounds, best first.
     """
     rng = np.random.default_rng(seed)
-    found = []
+    schedule = _Schedule(
+        n_candidates=n_candidates,
+        omega_max=omega_max,
+        n_shapes=n_shapes,
+        prior=prior,
+        screen_duration=screen_duration,
+        windows=tuple(windows),
+        keep=tuple(keep),
+        max_epochs=max_epochs,
+        max_rotation=max_rotation,
+        iterations=iterations,
+        tolerance=tolerance,
+        twins=twins,
+        per_shape=per_shape,
+        distinct_angle=distinct_angle,
+        distinct_rate=distinct_rate,
+        groups=groups,
+        contention=contention,
+    )
+    found: list[Candidates] = []
     screened = 0
     best_data = math.inf
     for round_ in range(rounds):
-        part = _search_round(
-            problem,
-            n_candidates,
-            omega_max,
-            n_shapes,
-            rng,
-            prior,
-            screen_duration,
-            windows,
-            keep,
-            max_epochs,
-            max_rotation,
-            iterations,
-            tolerance,
-            twins,
-            progress,
-            per_shape,
-            (distinct_angle, distinct_rate, groups),
-        )
-        found.append(part[:8])
-        screened += part[7]
-        previous, best_data = best_data, min(best_data, float(part[8].min()))
+        part = _search_round(problem, schedule, rng, progress)
+        found.append(part.candidates)
+        screened += part.screened
+        previous, best_data = best_data, min(best_data, float(part.chi2_data.min()))
         if progress:
-            progress(f"round {round_ + 1}: best χ² {best_data:.1f} on {len(part[6])} measurements")
-        if best_data <= good_fit * len(part[6]) or best_data > (1.0 - min_improvement) * previous:
+            progress(
+                f"round {round_ + 1}: best χ² {best_data:.1f} on {len(part.epochs)} measurements"
+            )
+        if (
+            best_data <= good_fit * len(part.epochs)
+            or best_data > (1.0 - min_improvement) * previous
+        ):
             break
-    q, w, k, shape, chi2, covariance, epochs, _ = (
-        torch.cat([p[i] for p in found]) if i not in (2, 6, 7) else found[-1][i] for i in range(8)
-    )
-    if k is not None:
-        k = torch.cat([p[2] for p in found])
-    order = torch.argsort(chi2, stable=True).numpy()
-    q_np = q.detach().numpy()[order]
-    w_np = w.detach().numpy()[order]
-    shape_np = shape.numpy()[order]
-    kept = order[distinct_states(q_np, w_np, shape_np, distinct_angle, distinct_rate, groups)]
+    every = Candidates.concat(found)
+    order = torch.argsort(every.chi2, stable=True).numpy()
+    kept = order[
+        distinct_states(
+            every.q.detach().numpy()[order],
+            every.omega.detach().numpy()[order],
+            every.shape.numpy()[order],
+            distinct_angle,
+            distinct_rate,
+            groups,
+        )
+    ]
     return SearchResult(
-        q=q.detach().numpy()[kept],
-        omega=w.detach().numpy()[kept],
-        k=None if k is None else k.detach().numpy()[kept],
-        shape=shape.numpy()[kept],
-        chi2=chi2.detach().numpy()[kept],
-        covariance=covariance.detach().numpy()[kept],
-        epochs=epochs,
+        q=every.q.detach().numpy()[kept],
+        omega=every.omega.detach().numpy()[kept],
+        k=None if every.k is None else every.k.detach().numpy()[kept],
+        shape=every.shape.numpy()[kept],
+        chi2=every.chi2.detach().numpy()[kept],
+        covariance=every.covariance.detach().numpy()[kept],
+        epochs=part.epochs,
         screened=screened,
     )
 
 
 def _search_round(
-    problem,
-    n_candidates,
-    omega_max,
-    n_shapes,
-    rng,
-    prior,
-    screen_duration,
-    windows,
-    keep,
-    max_epochs,
-    max_rotation,
-    iterations,
-    tolerance,
-    twins,
-    progress,
-    per_shape,
-    distinct,
-):
-    """One screening and continuation pass: the refined candidates' tensors, the final
-    window, the number screened and the data part of χ²."""
+    problem: BatchProblem,
+    schedule: _Schedule,
+    rng: np.random.Generator,
+    progress: Callable[[str], None] | None,
+) -> _Round:
+    """One screening and continuation pass over the schedule's windows."""
+    prior, keep, omega_max = schedule.prior, schedule.keep, schedule.omega_max
     if prior is None:
-        candidates = uniform_candidates(problem, n_candidates, omega_max, rng, n_shapes)
+        candidates = uniform_candidates(
+            problem, schedule.n_candidates, omega_max, rng, schedule.n_shapes
+        )
         fit_prior = Prior.rates_only(omega_max)
     else:
-        candidates = prior_candidates(problem, n_candidates, prior, rng, range(n_shapes))
+        candidates = prior_candidates(
+            problem, schedule.n_candidates, prior, rng, range(schedule.n_shapes)
+        )
         fit_prior = prior
-    q, w, k, shape = screen(
+    screened = len(candidates)
+    candidates = screen(
         problem,
         candidates,
-        screen_duration,
+        schedule.screen_duration,
         keep[0],
         prior=prior,
-        tolerance=tolerance,
-        per_shape=per_shape,
+        tolerance=schedule.tolerance,
+        per_shape=schedule.per_shape,
     )
     if progress:
-        progress(f"screened {len(candidates[0])} candidates")
-    chi2 = covariance = None
-    epochs = None
-    factor = 1
+        progress(f"screened {screened} candidates")
+    epochs = np.zeros(0, dtype=int)
+    # Shapes in contention, and each one's multiple of the counts (1 + its kinds of twins).
+    contending = np.ones(schedule.n_shapes, dtype=bool)
+    factor = np.ones(schedule.n_shapes, dtype=int)
     # 1σ caps of the draws that refill the candidate set: the prior's, or 30° and a
     # tenth of the rate ball (and 0.5 in k).
     sigma_att = prior.attitude_sigma if prior is not None else math.radians(30.0)
@@ -989,40 +1117,57 @@ def _search_round(
     cap = np.concatenate(
         [np.full(3, sigma_att), np.broadcast_to(sigma_rate, (3,)), np.full(2, 0.5)]
     )[: problem.n_params]
+
+    def counts(count: int) -> Count:
+        """Candidates per shape (or overall) going on with ``count`` per contender."""
+        if not schedule.per_shape:
+            return int(factor[0]) * count
+        return np.where(contending, factor * count, min(count, keep[-1]))
+
     # Twins join where the candidate count is first cut hard (fourfold or more): the
     # windows before it do not yet tell the many candidates apart.
     cuts = [i for i in range(len(keep) - 1) if 4 * keep[i + 1] <= keep[i]]
     twin_stage = cuts[0] if cuts else 0
-    for stage, (duration, count) in enumerate(zip(windows, keep, strict=True)):
-        if chi2 is not None:
-            best = _best_distinct(q, w, shape, chi2, factor * count, per_shape, *distinct)
-            v = w if k is None else torch.cat([w, k], dim=1)
-            q, v, shape = _replenish(
-                q[best], v[best], shape[best], covariance[best], factor * count, per_shape, cap, rng
+    for stage, (duration, count) in enumerate(zip(schedule.windows, keep, strict=True)):
+        if candidates.chi2 is not None:
+            best = schedule.best_distinct(candidates, counts(count))
+            candidates = _replenish(
+                candidates.take(best),
+                counts(count),
+                per_shape=schedule.per_shape,
+                cap=cap,
+                rng=rng,
             )
-            w, k = v[:, :3], (v[:, 3:] if k is not None else None)
-        epochs = problem.window(
-            duration, max(max_epochs, math.ceil(duration * omega_max / max_rotation))
+        rotation_epochs = math.ceil(duration * omega_max / schedule.max_rotation)
+        epochs = problem.window(duration, max(schedule.max_epochs, rotation_epochs))
+        candidates = refine(
+            problem, candidates, epochs, iterations=schedule.iterations, prior=fit_prior
         )
-        q, w, k, chi2, covariance = refine(
-            problem, q, w, k, shape, epochs, iterations, prior=fit_prior
-        )
-        if stage == twin_stage and twins is not None and len(keep) > 1:
-            # Twins of the candidates that go on, refined on the same window.
-            best = _best_distinct(q, w, shape, chi2, keep[stage + 1], per_shape, *distinct)
-            q, w, shape, chi2, covariance = (
-                q[best],
-                w[best],
-                shape[best],
-                chi2[best],
-                covariance[best],
+        if schedule.per_shape:
+            contending &= _contending(
+                candidates, fit_prior, len(epochs), schedule.contention, schedule.n_shapes
             )
-            k = None if k is None else k[best]
-            q, w, k, shape, chi2, covariance, factor = _with_twins(
-                problem, twins, q, w, k, shape, chi2, covariance, epochs, iterations, fit_prior
+        if stage == twin_stage and schedule.twins is not None and len(keep) > 1:
+            # Twins of the contenders' candidates that go on, refined on the same window.
+            chosen = candidates.take(schedule.best_distinct(candidates, counts(keep[stage + 1])))
+            twinned = torch.as_tensor(contending[chosen.shape.numpy()])
+            with_twins, kinds = _with_twins(
+                problem,
+                schedule.twins,
+                chosen.take(twinned),
+                epochs,
+                iterations=schedule.iterations,
+                prior=fit_prior,
             )
+            candidates = Candidates.concat([with_twins, chosen.take(~twinned)])
+            factor = np.where(contending, kinds, 1)
         if progress:
-            progress(f"refined {len(q)} candidates on {duration:.0f} s, best χ² {chi2.min():.1f}")
+            progress(
+                f"refined {len(candidates)} candidates on {duration:.0f} s, "
+                f"best χ² {candidates.chi2.min():.1f}"
+            )
     # The stopping test looks at the data part of χ² only.
-    chi2_data = chi2 - (fit_prior.residuals(q, w) ** 2).sum(dim=1)
-    return q, w, k, shape, chi2, covariance, epochs, len(candidates[0]), chi2_data
+    chi2_data = candidates.chi2 - (fit_prior.residuals(candidates.q, candidates.omega) ** 2).sum(
+        dim=1
+    )
+    return _Round(candidates, epochs, screened, chi2_data)

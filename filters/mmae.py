@@ -43,13 +43,14 @@ probabilities have no floor, and it blends quaternions linearly.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
 from filters.attitude import (
     quaternion_conjugate,
@@ -67,10 +68,15 @@ class MultipleModelBank:
     """A bank of :class:`~filters.ukf.AttitudeUKF`, one per model, each with one or more
     hypotheses (members).
 
+    The filters are stacked into one (:meth:`AttitudeUKF.stack`, each member keeping its
+    model's dynamics), so every cycle runs the sigma points, the propagation and the
+    unscented transforms of the whole bank in one batched call; only the measurement
+    functions are called model by model.
+
     Parameters
     ----------
     filters : sequence of AttitudeUKF
-        One filter per model.
+        One filter per model (same state dimension and filter settings).
     names : sequence of str
         Model names.
     log_prior : sequence, optional
@@ -87,6 +93,13 @@ class MultipleModelBank:
         NIS values (and ``ν²/R``) are capped at this in the windows.
     residual_factor : float
         A model also fails when its windowed mean ``ν²/R`` exceeds this times the bound.
+
+    Attributes
+    ----------
+    ukf : AttitudeUKF
+        The stacked filter: the members of model ``j`` are ``ukf.x[members[j]]`` etc.
+    members : list of slice
+        Each model's members in :attr:`ukf`.
     """
 
     def __init__(
@@ -104,7 +117,9 @@ class MultipleModelBank:
             raise ValueError("one filter per model name, at least one")
         if not 0.0 <= floor * len(filters) < 1.0:
             raise ValueError(f"probability floor {floor} is too large for {len(filters)} models")
-        self.filters = list(filters)
+        self.ukf = AttitudeUKF.stack(filters)
+        bounds = np.cumsum([0, *(len(f) for f in filters)])
+        self.members = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
         self.names = list(names)
         self.floor = float(floor)
         self.window = int(window)
@@ -112,35 +127,68 @@ class MultipleModelBank:
         self.bound = chi2_band(1, self.window, 1.0 - 2.0 * (1.0 - level))[1]
         if log_prior is None:
             log_prior = [np.zeros(len(f)) for f in filters]
-        self.log_weights = []
-        model_log = []
-        for f, lp in zip(filters, log_prior, strict=True):
-            lp = np.broadcast_to(np.asarray(lp, dtype=float), (len(f),))
-            total = logsumexp(lp)
-            self.log_weights.append(lp - total)
-            model_log.append(total)
-        model_log = np.asarray(model_log)
+        self._model = np.repeat(np.arange(len(filters)), [len(f) for f in filters])
+        self._starts = bounds[:-1]
+        joint = np.concatenate(
+            [
+                np.broadcast_to(np.asarray(lp, dtype=float), (len(f),))
+                for f, lp in zip(filters, log_prior, strict=True)
+            ]
+        )
+        model_log = self._model_log(joint)
+        self._log_w = joint - model_log[self._model]
         self.probabilities = self._floored(np.exp(model_log - np.max(model_log)))
         self.residual_factor = float(residual_factor)
         self._nis: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
         self._misfit: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
 
     def __len__(self) -> int:
-        return len(self.filters)
+        return len(self.members)
 
     def _floored(self, p: np.ndarray) -> np.ndarray:
         p = p / p.sum()
         p = np.maximum(p, self.floor)
         return p / p.sum()
 
+    @property
+    def log_weights(self) -> list[np.ndarray]:
+        """Log-weights of every model's hypotheses (each list entry log-sums to 0)."""
+        return [self._log_w[s] for s in self.members]
+
+    def _model_log(self, joint: np.ndarray) -> np.ndarray:
+        """``log Σ_h exp(joint_h)`` over each model's hypotheses (−inf for none finite)."""
+        peak = np.maximum.reduceat(joint, self._starts)
+        peak = np.where(np.isfinite(peak), peak, 0.0)
+        with np.errstate(divide="ignore"):
+            return peak + np.log(np.add.reduceat(np.exp(joint - peak[self._model]), self._starts))
+
+    def hypotheses(self, model: int) -> int:
+        """Number of hypotheses (members) of a model."""
+        s = self.members[model]
+        return s.stop - s.start
+
     def leader(self, model: int) -> int:
-        """Index of the heaviest hypothesis of a model."""
-        return int(np.argmax(self.log_weights[model]))
+        """Index of the heaviest hypothesis of a model (within the model)."""
+        return int(np.argmax(self._log_w[self.members[model]]))
 
     def predict(self, dt: float) -> None:
         """Propagate every model's filter over ``dt`` seconds."""
-        for f in self.filters:
-            f.predict(dt)
+        self.ukf.predict(dt)
+
+    def _stacked(self, hx: Sequence[Measurement]) -> Measurement:
+        """One measurement function over the stacked members from one per model."""
+        if len(hx) != len(self):
+            raise ValueError(f"one measurement function per model ({len(self)}), got {len(hx)}")
+
+        def stacked(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
+            return np.concatenate(
+                [
+                    np.asarray(h(q[s], theta[s]), dtype=float).reshape(s.stop - s.start, -1)
+                    for h, s in zip(hx, self.members, strict=True)
+                ]
+            )
+
+        return stacked
 
     def update(
         self, z: float, r: float, hx: Sequence[Measurement], use: bool = True
@@ -163,20 +211,18 @@ class MultipleModelBank:
             One per model (arrays over its hypotheses).
         """
         leaders = [self.leader(j) for j in range(len(self))]
-        results = [
-            f.update(z, r, h) if use else f.evaluate(z, r, h)
-            for f, h in zip(self.filters, hx, strict=True)
-        ]
+        stacked = self._stacked(hx)
+        result = self.ukf.update(z, r, stacked) if use else self.ukf.evaluate(z, r, stacked)
+        results = [_members(result, s) for s in self.members]
         if not use:
             return results
-        model_log = np.full(len(self), -np.inf)
-        for j, res in enumerate(results):
-            log_l = np.nan_to_num(res.log_likelihood, nan=-np.inf)
-            if not np.isfinite(log_l).any():
-                continue
-            joint = self.log_weights[j] + log_l
-            model_log[j] = logsumexp(joint)
-            self.log_weights[j] = joint - model_log[j]
+        log_l = np.nan_to_num(result.log_likelihood, nan=-np.inf)
+        model_log = self._model_log(self._log_w + log_l)
+        informed = np.logical_or.reduceat(np.isfinite(log_l), self._starts)
+        model_log = np.where(informed, model_log, -np.inf)
+        self._log_w = np.where(
+            informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
+        )
         if np.isfinite(model_log).any():
             with np.errstate(divide="ignore"):
                 log_post = np.log(self.probabilities) + model_log
@@ -189,6 +235,11 @@ class MultipleModelBank:
                 window.append(min(nis, self.nis_cap))
                 misfit.append(min(float(res.innovation[lead]) ** 2 / r, self.nis_cap))
         return results
+
+    def evaluate(self, z: float, r: float, hx: Measurement, model: int) -> UpdateResult:
+        """Innovation statistics of one model's hypotheses for a measurement, without using
+        it (``hx`` is that model's measurement function)."""
+        return self.ukf.evaluate(z, r, hx, members=self.members[model])
 
     @property
     def windowed_nis(self) -> np.ndarray:
@@ -223,8 +274,12 @@ class MultipleModelBank:
     def estimate(self, model: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Attitude, rates and covariance of ``[δp, ω(, θ)]`` of a model's heaviest
         hypothesis."""
-        f, h = self.filters[model], self.leader(model)
-        return f.q[h], f.omega[h], f.P[h]
+        i = self.members[model].start + self.leader(model)
+        return self.ukf.q[i], self.ukf.omega[i], self.ukf.P[i]
+
+    def parameters(self, model: int) -> np.ndarray:
+        """Parameter estimates ``θ`` of a model's heaviest hypothesis."""
+        return self.ukf.params[self.members[model].start + self.leader(model)]
 
     def fused(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Probability-weighted attitude, rates and mixture covariance of ``[δp, ω]``.
@@ -246,15 +301,17 @@ class MultipleModelBank:
         """
         p = np.clip(self.probabilities - self.floor, 0.0, None)
         p = self.probabilities if p.sum() <= 0.0 else p / p.sum()
-        estimates = [self.estimate(j) for j in range(len(self))]
-        qs = np.stack([e[0] for e in estimates])
-        ws = np.stack([e[1] for e in estimates])
+        leaders = [s.start + self.leader(j) for j, s in enumerate(self.members)]
+        qs, ws, ps = self.ukf.q[leaders], self.ukf.omega[leaders], self.ukf.P[leaders, :6, :6]
         q = quaternion_mean(qs, p)
         omega = p @ ws
         dx = np.concatenate(
             [quaternion_to_grp(quaternion_multiply(qs, quaternion_conjugate(q))), ws - omega], 1
         )
-        covariance = sum(
-            pj * (e[2][:6, :6] + np.outer(d, d)) for pj, e, d in zip(p, estimates, dx, strict=True)
-        )
+        covariance = np.einsum("j,jab->ab", p, ps + dx[:, :, None] * dx[:, None, :])
         return q, omega, covariance
+
+
+def _members(result: UpdateResult, members: slice) -> UpdateResult:
+    """The part of an update's outcome that belongs to some members."""
+    return UpdateResult(*(getattr(result, f.name)[members] for f in fields(result)))

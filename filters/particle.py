@@ -55,8 +55,8 @@ import numpy as np
 import torch
 
 from filters.attitude import (
+    PrincipalInertia,
     attitude_angle,
-    inertia_from_tanh,
     propagate_torque_free,
     quaternion_canonical,
     quaternion_conjugate,
@@ -64,6 +64,7 @@ from filters.attitude import (
     quaternion_multiply,
     quaternion_normalize,
     quaternion_to_rotation_vector,
+    ratios_from_tanh,
     rotation_vector_to_quaternion,
 )
 from filters.linalg import covariance_root
@@ -275,6 +276,8 @@ class AttitudeParticleFilter:
         self.inertias = torch.as_tensor(np.stack([np.asarray(j) for j in inertias]), dtype=dtype)
         axes = principal_axes or [np.eye(3)] * len(inertias)
         self.axes = torch.as_tensor(np.stack([np.asarray(a) for a in axes]), dtype=dtype)
+        self._principal = PrincipalInertia.from_inertia(self.inertias)
+        self._tanh_frames = PrincipalInertia.from_tanh(np.zeros(2), self.axes)
         self.likelihood = likelihood
         self.nu = float(nu)
         self.ess_threshold = float(ess_threshold)
@@ -348,13 +351,14 @@ class AttitudeParticleFilter:
         )
 
     # ------------------------------------------------------------------ dynamics
-    def _inertia(self) -> torch.Tensor:
+    def _inertia(self) -> PrincipalInertia:
         if self.k is None:
-            if bool((self.shape == self.shape[0]).all()):
-                return self.inertias[self.shape[0]]
-            return self.inertias[self.shape]
-        axes = self.axes[self.shape]
-        return axes @ inertia_from_tanh(self.k) @ axes.transpose(-1, -2)
+            shape = self.shape.numpy()
+            if bool((shape == shape[0]).all()):
+                return self._principal.select(shape[0])
+            return self._principal.select(shape)
+        frames = self._tanh_frames.select(self.shape.numpy())
+        return frames._replace(ratios=ratios_from_tanh(self.k.numpy()))
 
     def predict(self, dt: float) -> None:
         """Propagate every particle over ``dt`` seconds (torque-free, deterministic)."""

@@ -67,7 +67,7 @@ Zanetti, R., DeMars, K. J. & Bishop, R. H. (2010). Underweighting nonlinear meas
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -76,13 +76,14 @@ from filterpy.kalman import MerweScaledSigmaPoints
 from scipy import stats
 
 from filters.attitude import (
+    PrincipalInertia,
     grp_to_quaternion,
-    inertia_from_tanh,
     propagate_torque_free,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_normalize,
     quaternion_to_grp,
+    ratios_from_tanh,
 )
 
 __all__ = [
@@ -90,13 +91,17 @@ __all__ = [
     "Dynamics",
     "Measurement",
     "ProcessNoise",
+    "TorqueFreeDynamics",
     "UpdateResult",
     "default_gate",
     "sigma_points",
+    "stack_dynamics",
     "torque_free_dynamics",
     "unscented_moments",
 ]
 
+#: Every member (an index over a filter's members).
+_ALL = slice(None)
 #: ``fx(q (..., 4), ω (..., 3), θ (..., m), Δt) → (q', ω')``.
 Dynamics = Callable[[np.ndarray, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 #: ``hx(q (B, S, 4), θ (B, S, m)) → z (B, S)``.
@@ -108,12 +113,44 @@ def default_gate(probability: float = 1e-4) -> float:
     return float(stats.chi2.isf(probability, 1))
 
 
+@dataclass(frozen=True)
+class TorqueFreeDynamics:
+    """``fx`` of torque-free motion: fixed-step RK4 in principal axes
+    (:func:`~filters.attitude.propagate_torque_free`), with the inertia fixed or estimated.
+
+    Build it with :func:`torque_free_dynamics`; :func:`stack_dynamics` joins the dynamics of
+    several filters into one whose members each keep their own inertia.
+
+    Attributes
+    ----------
+    inertia : PrincipalInertia
+        Principal axes and ratios, shared or per member (leading member axis and a
+        singleton sigma-point axis, ``(B, 1, ...)``). With ``tanh_index`` the ratios come
+        from the parameters and only the axes are used.
+    max_step : float
+        Largest RK4 step (s).
+    tanh_index : (int, int) or None
+        Positions of ``k1, k2`` in the parameter vector ``θ``.
+    """
+
+    inertia: PrincipalInertia
+    max_step: float = 1.0
+    tanh_index: tuple[int, int] | None = None
+
+    def __call__(self, q: Any, omega: Any, params: Any, dt: float) -> tuple[Any, Any]:
+        inertia = self.inertia
+        if self.tanh_index is not None:
+            k = params[..., list(self.tanh_index)]
+            inertia = inertia._replace(ratios=ratios_from_tanh(k))
+        return propagate_torque_free(q, omega, inertia, dt, self.max_step)
+
+
 def torque_free_dynamics(
     inertia: Any,
     max_step: float = 1.0,
     tanh_index: tuple[int, int] | None = None,
     principal_axes: Any = None,
-) -> Dynamics:
+) -> TorqueFreeDynamics:
     """Build ``fx`` for torque-free motion, with the inertia fixed or estimated.
 
     Parameters
@@ -130,21 +167,50 @@ def torque_free_dynamics(
 
     Returns
     -------
-    callable
+    TorqueFreeDynamics
         ``fx(q, ω, θ, Δt) → (q', ω')``.
     """
-    fixed = np.asarray(inertia, dtype=float)
-    axes = np.eye(3) if principal_axes is None else np.asarray(principal_axes, dtype=float)
+    if tanh_index is None:
+        principal = PrincipalInertia.from_inertia(np.asarray(inertia, dtype=float))
+    else:
+        principal = PrincipalInertia.from_tanh(np.zeros(2), principal_axes)
+    return TorqueFreeDynamics(principal, float(max_step), tanh_index)
 
-    def fx(q: Any, omega: Any, params: Any, dt: float) -> tuple[Any, Any]:
-        if tanh_index is None:
-            j = fixed
-        else:
-            k = params[..., list(tanh_index)]
-            j = axes @ inertia_from_tanh(k) @ axes.T
-        return propagate_torque_free(q, omega, j, dt, max_step)
 
-    return fx
+def stack_dynamics(dynamics: Sequence[Dynamics], counts: Sequence[int]) -> Dynamics:
+    """The dynamics of a stack of filters: ``counts[j]`` members following ``dynamics[j]``.
+
+    Torque-free dynamics with the same step and parameterisation become one
+    :class:`TorqueFreeDynamics` with an inertia per member, propagated in one call; other
+    callables are applied to their own members in turn.
+    """
+    counts = [int(c) for c in counts]
+    first = dynamics[0]
+    if all(
+        isinstance(d, TorqueFreeDynamics)
+        and (d.max_step, d.tanh_index) == (first.max_step, first.tanh_index)
+        for d in dynamics
+    ):
+        fields = [
+            np.concatenate(
+                [
+                    np.repeat(np.asarray(f)[None], c, axis=0)
+                    for f, c in zip(parts, counts, strict=True)
+                ]
+            )[:, None]
+            for parts in zip(*(d.inertia for d in dynamics), strict=True)
+        ]
+        return TorqueFreeDynamics(PrincipalInertia(*fields), first.max_step, first.tanh_index)
+    bounds = np.cumsum([0, *counts])
+
+    def stacked(q: Any, omega: Any, params: Any, dt: float) -> tuple[Any, Any]:
+        out = [
+            f(q[a:b], omega[a:b], params[a:b], dt)
+            for f, a, b in zip(dynamics, bounds[:-1], bounds[1:], strict=True)
+        ]
+        return np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out])
+
+    return stacked
 
 
 @dataclass(frozen=True)
@@ -203,9 +269,14 @@ def sigma_points(points: MerweScaledSigmaPoints, x: np.ndarray, p: np.ndarray) -
         ``[x, x + L_1 … x + L_n, x − L_1 … x − L_n]`` with ``L Lᵀ = (n + λ) P`` (the
         order of filterpy's ``sigma_points``).
     """
+    return _sigma_points_of(points, x, np.linalg.cholesky(p))
+
+
+def _sigma_points_of(points: MerweScaledSigmaPoints, x: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """:func:`sigma_points` from the Cholesky factors ``root`` of ``P``."""
     n = points.n
-    lam = points.alpha**2 * (n + points.kappa) - n
-    offsets = np.swapaxes(np.linalg.cholesky((n + lam) * p), -1, -2)
+    scale = math.sqrt(points.alpha**2 * (n + points.kappa))  # √(n + λ)
+    offsets = scale * np.swapaxes(root, -1, -2)
     return np.concatenate([x[:, None], x[:, None] + offsets, x[:, None] - offsets], axis=1)
 
 
@@ -342,6 +413,47 @@ class AttitudeUKF:
         self.points = MerweScaledSigmaPoints(self.n, alpha=alpha, beta=beta, kappa=kappa)
         self.gate = default_gate() if gate is None else float(gate)
         self.underweighting = float(underweighting)
+        self._noise_cache: tuple[float, Any] = (math.nan, None)
+
+    @classmethod
+    def stack(cls, filters: Sequence[AttitudeUKF]) -> AttitudeUKF:
+        """One filter holding the members of several (in order), each member keeping its
+        own dynamics (:func:`stack_dynamics`): a bank of models then runs every cycle's
+        sigma points, propagation and unscented transforms in one batched call.
+
+        Raises
+        ------
+        ValueError
+            If the filters differ in state dimension, sigma-point parameters, process
+            noise, gate or underweighting.
+        """
+        first = filters[0]
+        settings = [
+            (
+                f.n,
+                f.points.alpha,
+                f.points.beta,
+                f.points.kappa,
+                f.process_noise,
+                f.gate,
+                f.underweighting,
+            )
+            for f in filters
+        ]
+        if any(s != settings[0] for s in settings):
+            raise ValueError(
+                "filters stacked into one must share the state dimension, sigma-point "
+                "parameters, process noise, gate and underweighting"
+            )
+        out = cls.__new__(cls)
+        out.__dict__.update(first.__dict__)
+        out.q = np.concatenate([f.q for f in filters])
+        out.x = np.concatenate([f.x for f in filters])
+        out.P = np.concatenate([f.P for f in filters])
+        out.fx = stack_dynamics([f.fx for f in filters], [len(f) for f in filters])
+        out.hx = None
+        out._noise_cache = (math.nan, None)
+        return out
 
     def __len__(self) -> int:
         return len(self.x)
@@ -362,12 +474,22 @@ class AttitudeUKF:
         self.q, self.x, self.P = self.q[members], self.x[members], self.P[members]
 
     # ------------------------------------------------------------------ cycle
-    def _sigma_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sigma points of ``(x, P)`` and their attitudes ``δq(δp_i) ⊗ q̂``."""
-        self.P = _positive_definite(self.P)
-        sigmas = sigma_points(self.points, self.x, self.P)
-        q = quaternion_multiply(grp_to_quaternion(sigmas[..., :3]), self.q[:, None])
+    def _sigma_points(self, members: Any = _ALL) -> tuple[np.ndarray, np.ndarray]:
+        """Sigma points of ``(x, P)`` of some members and their attitudes
+        ``δq(δp_i) ⊗ q̂``."""
+        p = self.P[members]
+        fixed, root = _cholesky(p)
+        if fixed is not p:
+            self.P[members] = fixed
+        sigmas = _sigma_points_of(self.points, self.x[members], root)
+        q = quaternion_multiply(grp_to_quaternion(sigmas[..., :3]), self.q[members][:, None])
         return sigmas, q
+
+    def _noise(self, dt: float) -> np.ndarray:
+        """``Q(Δt)``, kept for the last step size (filters mostly step at one cadence)."""
+        if self._noise_cache[0] != dt:
+            self._noise_cache = (dt, self.process_noise(dt, self.n))
+        return self._noise_cache[1]
 
     def predict(self, dt: float) -> None:
         """Propagate the estimates and covariances over ``dt`` seconds (USQUE step 2)."""
@@ -379,31 +501,40 @@ class AttitudeUKF:
         reference = q_new[:, :1]
         dp = quaternion_to_grp(quaternion_multiply(q_new, quaternion_conjugate(reference)))
         propagated = np.concatenate([dp, np.asarray(w_new), sigmas[..., 6:]], axis=-1)
-        x, p = unscented_moments(self.points, propagated, self.process_noise(dt, self.n))
+        x, p = unscented_moments(self.points, propagated, self._noise(dt))
         self.q = quaternion_normalize(
             quaternion_multiply(grp_to_quaternion(x[:, :3]), reference[:, 0])
         )
         x[:, :3] = 0.0
         self.x, self.P = x, 0.5 * (p + np.swapaxes(p, -1, -2))
 
-    def _measurement_moments(self, hx: Measurement | None) -> tuple[np.ndarray, ...]:
-        """Sigma points, ``ẑ``, the state part of ``S`` and ``P_xz`` of a measurement."""
+    def _measurement_moments(
+        self, hx: Measurement | None, members: Any = _ALL
+    ) -> tuple[np.ndarray, ...]:
+        """``ẑ``, the state part of ``S`` and ``P_xz`` of a measurement, for some members."""
         hx = hx or self.hx
         if hx is None:
             raise ValueError("no measurement function given")
-        sigmas, q = self._sigma_points()
-        predicted = np.asarray(hx(q, sigmas[..., 6:]), dtype=float).reshape(len(self), -1)
-        z_hat, s = unscented_moments(self.points, predicted[..., None])
-        z_hat = z_hat[:, 0]
-        cross = np.einsum(
-            "s,bsn,bs->bn", self.points.Wc, sigmas - self.x[:, None], predicted - z_hat[:, None]
-        )
-        return z_hat, s[:, 0, 0], cross
+        sigmas, q = self._sigma_points(members)
+        predicted = np.asarray(hx(q, sigmas[..., 6:]), dtype=float).reshape(len(sigmas), -1)
+        z_hat = predicted @ self.points.Wm
+        deviation = predicted - z_hat[:, None]
+        weighted = deviation * self.points.Wc
+        s_state = np.einsum("bs,bs->b", weighted, deviation)
+        cross = np.einsum("bs,bsn->bn", weighted, sigmas - sigmas[:, :1])
+        return z_hat, s_state, cross
 
-    def evaluate(self, z: Any, r: Any, hx: Measurement | None = None) -> UpdateResult:
-        """Innovation statistics of a measurement without using it (``gated`` all False)."""
-        z_hat, s_state, _ = self._measurement_moments(hx)
-        return _innovation(z, r, z_hat, s_state, np.full(len(self), np.inf))
+    def evaluate(
+        self, z: Any, r: Any, hx: Measurement | None = None, members: Any = None
+    ) -> UpdateResult:
+        """Innovation statistics of a measurement without using it (``gated`` all False).
+
+        ``members`` (an index, slice or mask) evaluates only those members; ``hx`` then
+        receives their sigma points only.
+        """
+        members = _ALL if members is None else members
+        z_hat, s_state, _ = self._measurement_moments(hx, members)
+        return _innovation(z, r, z_hat, s_state, np.full(len(z_hat), np.inf))
 
     def update(self, z: Any, r: Any, hx: Measurement | None = None) -> UpdateResult:
         """Scalar measurement update (USQUE step 3) with innovation gating.
@@ -449,12 +580,13 @@ def _innovation(
     return UpdateResult(z_hat, nu, s, nis, log_likelihood, ~(nis <= gate))
 
 
-def _positive_definite(p: np.ndarray) -> np.ndarray:
-    """``p`` if every Cholesky factor exists, else with the failing ones' eigenvalues floored."""
+def _cholesky(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(P, L)`` with ``L Lᵀ = P``; covariances without a Cholesky factor get their
+    eigenvalues floored first (returned as the new ``P``)."""
     try:
-        np.linalg.cholesky(p)
-        return p
+        return p, np.linalg.cholesky(p)
     except np.linalg.LinAlgError:
         values, vectors = np.linalg.eigh(0.5 * (p + np.swapaxes(p, -1, -2)))
         floor = np.maximum(1e-12 * np.max(np.abs(values), axis=-1, keepdims=True), 1e-30)
-        return (vectors * np.maximum(values, floor)[..., None, :]) @ np.swapaxes(vectors, -1, -2)
+        p = (vectors * np.maximum(values, floor)[..., None, :]) @ np.swapaxes(vectors, -1, -2)
+        return p, np.linalg.cholesky(p)

@@ -56,6 +56,7 @@ from filters.attitude import (
 )
 from filters.global_search import (
     BatchProblem,
+    Candidates,
     Prior,
     SearchResult,
     distinct_states,
@@ -147,6 +148,12 @@ class InversionOptions:
         this fraction (see :func:`filters.global_search.global_search`): with a truth
         outside the bank every round fits poorly, and further rounds cost time without
         changing the answer. The PF's search runs all its rounds while the fit is poor.
+    search_contention : float
+        MMAE search: a shape whose best fit of a window is worse than this many times the
+        best shape's (``χ²``, or the window's number of measurements if larger) goes on
+        with ``hypotheses`` candidates and no twins (see
+        :func:`filters.global_search.global_search`); ``inf`` gives every shape the full
+        schedule.
     max_epochs : int
         Measurements per refinement window, at least.
     max_sample_rotation_deg : float
@@ -221,6 +228,7 @@ class InversionOptions:
     search_tolerance: float = 0.0
     search_rounds: int = 3
     search_min_improvement: float = 0.1
+    search_contention: float = 10.0
     max_epochs: int = 90
     max_sample_rotation_deg: float = 20.0
     process_noise_attitude: float = 1e-12
@@ -514,6 +522,7 @@ def _search(
         rounds=ctx.options.search_rounds,
         min_improvement=0.0 if for_pf else ctx.options.search_min_improvement,
         per_shape=per_shape,
+        contention=ctx.options.search_contention,
         progress=lambda message: ctx.report(0.0, message),
     )
     result.shape = np.asarray(shapes)[result.shape]
@@ -734,12 +743,13 @@ def _run_bank(
     for k in range(n):
         if k:
             bank.predict(times[k] - times[k - 1])
-        use = bool(times[k] > fit_end)
-        results = bank.update(z[k], r[k], [st.hx(k) for st in setups], use=use)
+        if times[k] > fit_end:
+            res = bank.update(z[k], r[k], [st.hx(k) for st in setups])[bank.best]
+            gated = bool(res.gated[0])
+        else:  # fitted by the search: only the table's prediction is needed
+            res = bank.evaluate(z[k], r[k], setups[bank.best].hx(k), bank.best)
+            gated = False
         q, omega, cov = bank.fused()
-        best = bank.best
-        res = results[best]
-        gated = bool(res.gated[0]) and use
         gated_count += gated
         rows.append(
             _row(
@@ -778,12 +788,12 @@ def _run_bank(
         )
     parameters = {}
     st = setups[best]
-    theta = st.ukf.params[bank.leader(best)]
+    theta = bank.parameters(best)
     if st.k_index is not None:
         parameters["k1"], parameters["k2"] = (float(v) for v in theta[:2])
     if st.offset_index is not None:
         parameters["magnitude_offset"] = float(theta[st.offset_index])
-    if len(st.ukf) > 1:
+    if bank.hypotheses(best) > 1:
         weights = np.exp(bank.log_weights[best])
         ctx.notes.append(
             f"{name}: heaviest of {len(st.ukf)} hypotheses carries {weights.max():.3f}"
@@ -977,20 +987,20 @@ def _polish(ctx: _Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.nd
     """
     problem = ctx.problem()
     q = torch.as_tensor(np.stack([m.quaternion for m in clusters]))
-    omega = torch.as_tensor(np.stack([m.omega for m in clusters]))
     k = None if clusters[0].k is None else torch.as_tensor(np.stack([m.k for m in clusters]))
     shape = torch.as_tensor([m.shape for m in clusters])
     weak = Prior.rates_only(ctx.omega_max)
-    q2, w2, k2, chi2, covariance = refine(
+    start = Candidates(
+        q=q, omega=torch.as_tensor(np.stack([m.omega for m in clusters])), shape=shape, k=k
+    )
+    fit = refine(
         problem,
-        q,
-        omega,
-        k,
-        shape,
+        start,
         np.arange(len(problem.times)),
         prior=weak,
         t_start=float(problem.times[-1]),
     )
+    q2, w2, k2, chi2, covariance = fit.q, fit.omega, fit.k, fit.chi2, fit.covariance
     chi2 = (chi2 - (weak.residuals(q2, w2) ** 2).sum(dim=1)).numpy()
     q2 = quaternion_canonical(q2.numpy())
     order = np.argsort(chi2, kind="stable")

@@ -48,6 +48,7 @@ from filters.attitude.kinematics import (
     xi_matrix,
 )
 from filters.attitude.propagation import (
+    PrincipalInertia,
     axisymmetric_solution,
     propagate,
     propagate_rk4,
@@ -55,6 +56,7 @@ from filters.attitude.propagation import (
     rk4,
     rk4_step,
     torque_free_derivative,
+    torque_free_trajectory,
 )
 from filters.attitude.quaternion import (
     attitude_angle,
@@ -81,6 +83,7 @@ from filters.attitude.quaternion import (
 
 __all__ = [
     "InertiaError",
+    "PrincipalInertia",
     "attitude_angle",
     "attitude_matrix",
     "axis_angle_to_quaternion",
@@ -126,6 +129,7 @@ __all__ = [
     "state_jacobian",
     "tanh_from_inertia",
     "torque_free_derivative",
+    "torque_free_trajectory",
     "transition_matrix",
     "validate_inertia",
     "xi_matrix",

@@ -20,6 +20,7 @@ from filters.attitude import (
 )
 from filters.global_search import (
     BatchProblem,
+    Candidates,
     Prior,
     _best_distinct,
     _replenish,
@@ -104,16 +105,18 @@ def test_levenberg_marquardt_recovers_the_truth_and_its_covariance(at_end):
     )
     w_start = w_true + rng.normal(0, math.radians(0.1), (n, 3))
     epochs = np.arange(len(problem.times))
-    q, w, k, chi2, cov = refine(
+    fit = refine(
         problem,
-        torch.as_tensor(starts),
-        torch.as_tensor(w_start),
-        None,
-        torch.zeros(n, dtype=torch.long),
+        Candidates(
+            q=torch.as_tensor(starts),
+            omega=torch.as_tensor(w_start),
+            shape=torch.zeros(n, dtype=torch.long),
+        ),
         epochs,
         iterations=25,
         t_start=t_start,
     )
+    q, w, k, chi2, cov = fit.q, fit.omega, fit.k, fit.chi2, fit.covariance
     errors = np.degrees(attitude_angle(q.numpy(), q_true))
     assert np.all(errors < 0.3), errors
     assert np.allclose(w.numpy(), w_true, atol=math.radians(0.01))
@@ -142,12 +145,12 @@ def test_every_kind_of_twin_is_refined_and_counted():
         return [(turned, w_, s_ == 1), (turned, -w_, np.zeros(len(q_), bool)), (q_, w_, s_ >= 0)]
 
     chi2, cov = torch.zeros(4, dtype=torch.float64), torch.zeros(4, 6, 6, dtype=torch.float64)
-    out = _with_twins(problem, twins, q, w, None, shape, chi2, cov, np.arange(10), 2, None)
-    q2, w2, k2, shape2, chi2_2, cov2, factor = out
-    assert calls == [4] and factor == 3 and k2 is None
-    assert len(q2) == len(w2) == len(shape2) == len(chi2_2) == len(cov2) == 4 + 2 + 4
-    assert shape2.tolist() == [0, 0, 1, 1, 1, 1, 0, 0, 1, 1]
-    assert torch.all(chi2_2[4:] > 0)  # the twins carry their own refined fit
+    start = Candidates(q=q, omega=w, shape=shape, chi2=chi2, covariance=cov)
+    out, factor = _with_twins(problem, twins, start, np.arange(10), iterations=2, prior=None)
+    assert calls == [4] and factor == 3 and out.k is None
+    assert len(out) == len(out.omega) == len(out.chi2) == len(out.covariance) == 4 + 2 + 4
+    assert out.shape.tolist() == [0, 0, 1, 1, 1, 1, 0, 0, 1, 1]
+    assert torch.all(out.chi2[4:] > 0)  # the twins carry their own refined fit
 
 
 def test_prior_pulls_an_uninformative_fit_to_the_prior_mean():
@@ -156,16 +159,18 @@ def test_prior_pulls_an_uninformative_fit_to_the_prior_mean():
     problem = _problem(q0, w0, seconds=20, sigma=10.0)  # measurements carry almost nothing
     prior = Prior(q0, w0, math.radians(2.0), math.radians(0.05))
     start = quaternion_multiply(rotation_vector_to_quaternion([0.1, 0.0, 0.0]), q0)
-    q, _w, _, _, cov = refine(
+    fit = refine(
         problem,
-        torch.as_tensor(start[None]),
-        torch.as_tensor(w0[None] + 0.01),
-        None,
-        torch.zeros(1, dtype=torch.long),
+        Candidates(
+            q=torch.as_tensor(start[None]),
+            omega=torch.as_tensor(w0[None] + 0.01),
+            shape=torch.zeros(1, dtype=torch.long),
+        ),
         np.arange(len(problem.times)),
         iterations=20,
         prior=prior,
     )
+    q, cov = fit.q, fit.covariance
     assert math.degrees(float(attitude_angle(q[0].numpy(), q0))) < 0.05
     assert np.allclose(np.sqrt(np.diag(cov[0].numpy()))[:3], math.radians(2.0), rtol=0.05)
 
@@ -282,17 +287,11 @@ def test_distinct_merges_symmetry_equivalent_states_and_near_duplicates():
     other = np.array([0, 0, 0, 1, 0, 0])
     assert list(distinct_states(qs, ws, other, angle, rate, [group] * 2)) == [0, 1, 2, 3, 5]
     cost = torch.tensor([5.0, 1.0, 3.0, 0.5, 0.9, 4.0], dtype=torch.float64)
-    best = _best_distinct(
-        torch.as_tensor(qs),
-        torch.as_tensor(ws),
-        torch.zeros(6, dtype=torch.long),
-        cost,
-        3,
-        False,
-        angle,
-        rate,
-        [group],
+    candidates = Candidates(
+        q=torch.as_tensor(qs), omega=torch.as_tensor(ws), shape=torch.zeros(6, dtype=torch.long)
     )
+    candidates.chi2 = cost
+    best = _best_distinct(candidates, 3, per_shape=False, angle=angle, rate=rate, groups=[group])
     assert best.tolist() == [3, 4, 2]  # 0 and 1 are worse copies of 3 and 4
 
 
@@ -305,7 +304,9 @@ def test_replenish_fills_up_with_capped_draws_around_the_survivors():
     tight = np.diag([1e-6] * 3 + [1e-10] * 3)
     covariance = torch.as_tensor(np.stack([wide, tight]))
     cap = np.array([math.radians(10.0)] * 3 + [math.radians(0.1)] * 3)
-    q2, v2, s2 = _replenish(q, v, shape, covariance, 400, True, cap, rng, scale=1.0)
+    parents = Candidates(q=q, omega=v, shape=shape, covariance=covariance)
+    out = _replenish(parents, 400, per_shape=True, cap=cap, rng=rng, scale=1.0)
+    q2, v2, s2 = out.q, out.omega, out.shape
     assert len(q2) == 800 and s2.bincount().tolist() == [400, 400]
     assert torch.equal(q2[:2], q) and torch.equal(v2[:2], v)
     for s, sigma_att, sigma_rate in ((0, cap[0], cap[3]), (1, 1e-3, 1e-5)):
@@ -317,5 +318,4 @@ def test_replenish_fills_up_with_capped_draws_around_the_survivors():
         assert np.std(dtheta, axis=0) == pytest.approx(np.full(3, sigma_att), rel=0.15)
         assert np.std(dw, axis=0) == pytest.approx(np.full(3, sigma_rate), rel=0.15)
     # nothing to add when the set is full
-    q3, _, _ = _replenish(q, v, shape, covariance, 1, True, cap, rng)
-    assert len(q3) == 2
+    assert len(_replenish(parents, 1, per_shape=True, cap=cap, rng=rng)) == 2

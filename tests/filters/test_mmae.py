@@ -66,7 +66,7 @@ def test_true_model_wins_and_the_fused_attitude_is_its_estimate():
     assert np.allclose(omega, truth[-1, 4:], atol=math.radians(0.05))
     assert not bank.none_fits and bank.consistent[2]
     # The mixture covariance includes the spread of the (floored) losing models' means.
-    assert np.trace(covariance) >= np.trace(bank.filters[2].P[0, :6, :6]) * (1 - 1e-9)
+    assert np.trace(covariance) >= np.trace(bank.estimate(2)[2][:6, :6]) * (1 - 1e-9)
 
 
 def test_none_fits_when_the_truth_is_outside_the_bank():

@@ -5,9 +5,12 @@ import pytest
 import torch
 
 from filters.attitude import (
+    PrincipalInertia,
     attitude_angle,
     attitude_matrix,
     axisymmetric_solution,
+    inertia_from_tanh,
+    principal_axes,
     propagate,
     propagate_rk4,
     quaternion_rate,
@@ -15,6 +18,7 @@ from filters.attitude import (
     rk4_step,
     state_derivative,
     torque_free_derivative,
+    torque_free_trajectory,
 )
 
 # Seed 000 scenario A: a nutating body (J and ω0 of the paper).
@@ -131,3 +135,37 @@ def test_generic_rk4_integrates_time_dependent_systems():
     # Translational states are not renormalised.
     big = rk4(lambda t, x: x, 0.0, np.full(4, 2.0), 0.1)
     assert np.all(big > 2.0)
+
+
+def test_trajectory_chains_equal_the_core_rk4_and_the_tanh_form_its_inertia():
+    """``torque_free_trajectory`` (principal axes) visits unsorted offsets of both signs
+    like a chain of the core's RK4 steps; ``PrincipalInertia.from_tanh(k, P)`` is the
+    inertia ``P diag J(k) Pᵀ``; per-state inertias, numpy and autograd tensors agree."""
+    rng = np.random.default_rng(12)
+    q0 = random_quaternion(5, rng)
+    w0 = rng.normal(0.0, 0.05, (5, 3))
+    k = rng.normal(0.0, 0.7, (5, 2))
+    axes = principal_axes(J_SEED000)[1]
+    inertias = axes @ inertia_from_tanh(k) @ axes.T
+    offsets = np.array([7.0, -3.5, 2.5, 0.0, -9.0])
+    expected = np.empty((5, len(offsets), 7))
+    for i, t in enumerate(offsets):
+        x = np.concatenate([q0, w0], axis=1)
+        steps = max(1, int(np.ceil(abs(t) / 2.0)))
+        for _ in range(steps if t else 0):
+            x = rk4_step(torque_free_derivative(inertias), x, t / steps)
+        expected[:, i] = x
+    # Intervals between sorted offsets are cut alike, so chains equal restarts only where
+    # each interval fits max_step: 2.5 → 7 (4.5 s, 3 steps of 1.5) vs 0 → 7 (4 steps).
+    for inertia in (inertias, PrincipalInertia.from_tanh(k, axes)):
+        q, w = torque_free_trajectory(q0, w0, [0.0, -3.5, -9.0], inertia, 2.0)
+        assert np.allclose(q, expected[:, [3, 1, 4], :4], atol=1e-12)
+        assert np.allclose(w, expected[:, [3, 1, 4], 4:], atol=1e-14)
+        q_t, _ = torque_free_trajectory(
+            torch.tensor(q0, requires_grad=True), torch.tensor(w0), [7.0], inertia, 2.0
+        )
+        assert q_t.requires_grad and np.allclose(q_t.detach(), expected[:, [0], :4], atol=1e-12)
+    q, _ = torque_free_trajectory(q0, w0, offsets, inertias, 2.0)
+    chained = expected[:, [0, 1, 3, 4], :4]
+    assert np.allclose(q[:, [1, 3, 4]], chained[:, 1:], atol=1e-12)
+    assert attitude_angle(q[:, 0], chained[:, 0]).max() < 1e-6  # 2.5 → 7 in other steps
