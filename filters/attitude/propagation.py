@@ -333,11 +333,12 @@ def propagate_torque_free(
 
     The equations are the attitude core's (:func:`~filters.attitude.rk4_step` of
     :func:`~filters.attitude.torque_free_derivative`), integrated in principal axes
-    (:class:`PrincipalInertia`) by a kernel of element-wise operations: the global search,
-    the particle filter and the UKF banks call this thousands of times, and the core's
-    array-API dispatch overhead dominated their run time. The tests check it against the
-    core to rounding. CPU tensors without gradients are computed in numpy (no copy); other
-    tensors (autograd, GPU) by the same kernel in torch.
+    (:class:`PrincipalInertia`): the global search, the particle filter and the UKF banks
+    call this thousands of times, and the core's array-API dispatch overhead dominated
+    their run time. Numpy arrays and CPU tensors without gradients run every state's chain
+    of steps in one compiled loop (:mod:`filters.attitude.principal_rk4`); other tensors
+    (autograd, GPU) take the same arithmetic as element-wise torch operations. The tests
+    check both against the core to rounding.
 
     Parameters
     ----------
@@ -449,26 +450,15 @@ def _trajectory(
         q_p = xp.stack([s[0] for s in states], axis=1)
         w_p = xp.stack([s[1] for s in states], axis=1)
     else:
-        # Column blocks small enough for the kernel's temporaries to stay in cache
-        # (measured 2.5× faster than one block of 12 288 states).
-        m = q_c.shape[1]
-        q_p = np.empty((4, len(offsets), m))
-        w_p = np.empty((3, len(offsets), m))
-        for a in range(0, m, _BLOCK):
-            b = min(a + _BLOCK, m)
-            block_p = p[:, a:b] if p.shape[1] > 1 else p
-            for i, (qq, ww) in enumerate(
-                _chains(q_c[:, a:b], w_c[:, a:b], block_p, offsets, max_step)
-            ):
-                q_p[:, i, a:b], w_p[:, i, a:b] = qq, ww
+        from filters.attitude.principal_rk4 import principal_chains
+
+        q_p, w_p = principal_chains(q_c, w_c, p, offsets, max_step)
     # (c, E, M), back in the body frame (q = r⁻¹ ⊗ q_P, ω = P ω_P), then (..., E, c).
     q_out = _left_multiply(xp.concat([-r[:3], r[3:]]), q_p)
     w_out = _mat_vec(frame, w_p)
     return _from_components(q_out, batch, xp), _from_components(w_out, batch, xp)
 
 
-#: States per column block of the numpy kernel.
-_BLOCK = 2048
 _NUMPY_NAMESPACE = as_arrays(np.zeros(1))[0]
 
 
@@ -540,14 +530,13 @@ _LAST = [2, 0, 1]
 
 def _rk4_principal(q: Any, w: Any, p: Any, h: float) -> tuple[Any, Any]:
     """One RK4 step ``h`` of ``q̇ = ½ Ω(ω) q``, ``ω̇ = p ⊙ (ω₂ω₃, ω₃ω₁, ω₁ω₂)`` on
-    component arrays ``q (4, M)``, ``ω (3, M)``, ``p (3, M or 1)`` (numpy or torch), then
-    the renormalisation of ``q``. The ½ of the kinematics is folded into the step weights."""
-    if isinstance(q, np.ndarray):
-        join, total, sqrt = np.concatenate, np.add.reduce, np.sqrt
-    else:
-        import torch
+    component tensors ``q (4, M)``, ``ω (3, M)``, ``p (3, M or 1)``, then the
+    renormalisation of ``q``. The ½ of the kinematics is folded into the step weights.
+    Numpy arrays take the compiled twin of this step
+    (:mod:`filters.attitude.principal_rk4`)."""
+    import torch
 
-        join, total, sqrt = torch.cat, torch.sum, torch.sqrt
+    join, total, sqrt = torch.cat, torch.sum, torch.sqrt
 
     def rates(qq: Any, ww: Any) -> tuple[Any, Any]:
         # 2 q̇ = [q₄ ω − ω × q_v, −ω·q_v]; ω × q_v and ω̇ share the cyclic shifts of ω.
