@@ -590,13 +590,15 @@ def residual_jacobian(
     traj = traj.reshape(m, len(steps), *traj.shape[1:])
     base = traj[:, 0]
     rate_tangent = (traj[:, 1:] - base[:, None]) / fd_step[:, None, None]
+    # Attitude columns: δθ_j = vec(Φ ⊗ [e_j, 0] ⊗ Φ⁻¹) = A(Φ) e_j. Rate and inertia columns:
+    # δθ = 2 vec(δq ⊗ q⁻¹) = 2 (q₄ δq_v − δq₄ q_v + δq_v × q_v), q = q(t).
     phi = quaternion_multiply(base, quaternion_conjugate(q0)[:, None])
-    half = torch.cat([0.5 * torch.eye(3, dtype=v.dtype), torch.zeros(3, 1, dtype=v.dtype)], 1)
-    left = quaternion_multiply(half[None], q0[:, None])
-    attitude_tangent = quaternion_multiply(phi[:, None], left[:, :, None])
-    tangent = torch.cat([attitude_tangent, rate_tangent], dim=1)
+    attitude_rotations = attitude_matrix(phi).permute(0, 3, 1, 2)
+    qv, q4 = base[:, None, :, :3], base[:, None, :, 3:]
+    dv, d4 = rate_tangent[..., :3], rate_tangent[..., 3:]
+    rate_rotations = 2.0 * (q4 * dv - d4 * qv + torch.linalg.cross(dv, qv.expand_as(dv)))
+    rotations = torch.cat([attitude_rotations, rate_rotations], dim=1)
     r, gradient = _rotation_differences(problem, base, shape, epochs)
-    rotations = 2.0 * quaternion_multiply(tangent, quaternion_conjugate(base)[:, None])[..., :3]
     jac = torch.einsum("nje,npej->nep", gradient, rotations)
     if prior is None:
         return r, jac
@@ -615,7 +617,9 @@ def _rotation_differences(
     h = float(torch.finfo(q.dtype).eps) ** (1.0 / 3.0)
     axes = h * torch.eye(3, dtype=q.dtype)
     turns = rotation_vector_to_quaternion(torch.cat([axes, -axes]))
-    probes = quaternion_multiply(turns[None, :, None, :], q[:, None])
+    # exp(θ) ⊗ q is linear in q: one product with the stacked left-multiplication matrices.
+    left = torch.stack([quaternion_multiply(turns, e) for e in torch.eye(4, dtype=q.dtype)], -1)
+    probes = (q @ left.reshape(24, 4).T).reshape(*q.shape[:2], 6, 4).permute(0, 2, 1, 3)
     attitudes = torch.cat([q[:, None], probes], dim=1).reshape(n * 7, *q.shape[1:])
     r = problem.residuals_of(attitudes, shape.repeat_interleave(7), epochs).reshape(n, 7, -1)
     return r[:, 0], (r[:, 1:4] - r[:, 4:7]) / (2.0 * h)
