@@ -310,7 +310,10 @@ class Renderer:
             )
             for v in (q, sun, observer)
         )
-        shape = torch.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
+        # numpy's rule (torch.broadcast_shapes imports sympy, seconds on first use)
+        shape = np.broadcast_shapes(
+            tuple(q.shape[:-1]), tuple(sun.shape[:-1]), tuple(observer.shape[:-1])
+        )
         q = q.expand(*shape, 4).reshape(-1, 4)
         sun = sun.expand(*shape, 3).reshape(-1, 3)
         observer = observer.expand(*shape, 3).reshape(-1, 3)

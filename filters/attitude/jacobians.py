@@ -144,7 +144,7 @@ def error_state_matrix(omega: Any, params: Any, form: str = "L") -> Any:
     else:
         raise ValueError(f"inertia form must be 'L' or 'k', got {form!r}")
     m = p.shape[-1]
-    batch = xp.broadcast_shapes(w.shape[:-1], p.shape[:-1])
+    batch = np.broadcast_shapes(tuple(w.shape[:-1]), tuple(p.shape[:-1]))
     kwargs = {"dtype": w.dtype, "device": getattr(w, "device", None)}
     top = xp.concat(
         [

@@ -88,3 +88,28 @@ def test_negative_vector_values_need_no_equals_sign(tmp_path):
     assert main(argv) == 0
     table = pd.read_csv(out)
     assert table["wx_deg_s"][0] == -5.0 and table["q1"][0] == -0.6
+
+
+def test_threads_option_sets_every_pool_before_torch_loads():
+    """``lightcurve --threads 1`` reaches torch and the kernels; idle threads sleep."""
+    code = (
+        "import os, sys, contextlib, io\n"
+        "os.environ.pop('OMP_WAIT_POLICY', None)\n"
+        "from lightcurve.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    code = main(['--threads', '1', 'propagate', '--duration', '10', '--step', '5'])\n"
+        "import torch\n"
+        "from lightcurve.kernels import get_num_threads\n"
+        "print(code, torch.get_num_threads(), get_num_threads(), os.environ['OMP_WAIT_POLICY'])\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.split() == ["0", "1", "1", "PASSIVE"], out.stderr
+
+
+def test_threads_value_is_not_taken_for_the_command(capsys):
+    from lightcurve.cli import _invoked_command, _requested_threads
+
+    assert _invoked_command(["--threads", "2", "propagate"]) == "propagate"
+    assert _requested_threads(["--threads=3", "propagate", "--threads", "9"]) == "3"
+    assert main(["--threads", "0", "propagate"]) == 2
+    assert "at least 1" in capsys.readouterr().err

@@ -1,0 +1,227 @@
+"""Commands under load: CPU and wall time of user commands quiet and beside CPU-bound processes.
+
+A command that spreads its work over threads is fair on a shared machine only if its threads
+sleep while they wait: busy-waiting threads (OpenMP's default spin) burn CPU whenever another
+process holds a core, so the same job costs several times its quiet CPU time. This benchmark
+runs each command twice in one run, first alone and then beside ``--load`` busy-loop processes
+that it starts itself, and reports the CPU time (user + system of the command's process tree,
+from ``wait4``) and the wall time of both with their ratios.
+
+    python -m benchmarks.load [--load 2] [--repeats 1] [--commands tour-ukf,...] [--out FILE]
+
+The machine's own load (``os.getloadavg``) is printed before each phase: on a shared machine
+the "quiet" phase is only as quiet as the other tenants allow.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks._machine import machine_info
+from lightcurve.atomic import atomic_write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Each command: a name and the argument lists run in order (the first ones prepare inputs and
+#: are not timed when the name's last element is the timed one). ``{tmp}`` is a scratch folder.
+COMMANDS: dict[str, dict[str, list[list[str]]]] = {
+    "simulate": {
+        "setup": [
+            [
+                "geometry",
+                "--start",
+                "2024-03-10T04:48:00",
+                "--duration",
+                "1200",
+                "--geo",
+                "-100",
+                "--out",
+                "{tmp}/geo.csv",
+            ]
+        ],
+        "timed": [
+            "simulate",
+            "{tmp}/geo.csv",
+            "--shape",
+            "box_wing",
+            "--q0",
+            "0,0,0,1",
+            "--omega0",
+            "0.5,1,-0.3",
+            "--noise-mag",
+            "0.05",
+            "--seed",
+            "1",
+            "--out",
+            "{tmp}/sim.csv",
+        ],
+    },
+    "tour-ukf": {
+        "setup": [
+            [
+                "geometry",
+                "--start",
+                "2024-03-10T04:48:00",
+                "--duration",
+                "1200",
+                "--geo",
+                "-100",
+                "--out",
+                "{tmp}/geo.csv",
+            ],
+            [
+                "simulate",
+                "{tmp}/geo.csv",
+                "--shape",
+                "box_wing",
+                "--q0",
+                "0,0,0,1",
+                "--omega0",
+                "0.5,1,-0.3",
+                "--noise-mag",
+                "0.05",
+                "--seed",
+                "1",
+                "--out",
+                "{tmp}/sim.csv",
+            ],
+        ],
+        "timed": [
+            "invert",
+            "{tmp}/sim.csv",
+            "--shape",
+            "box_wing",
+            "--method",
+            "ukf",
+            "--out",
+            "{tmp}/inv",
+        ],
+    },
+    "main-job-file": {
+        "setup": [],
+        "timed": [
+            "invert",
+            "data/observations/box_ccd_tumbling.csv",
+            "--shapes",
+            "box_wing,rocket_body,box,cylinder,plate,cube",
+            "--method",
+            "mmae",
+            "--out",
+            "{tmp}/mmae",
+        ],
+    },
+    "convex": {
+        "setup": [],
+        "timed": [
+            "convex",
+            "data/observations/real/ariadne.csv",
+            "--pole",
+            "220,0",
+            "--period",
+            "5.76198",
+            "--out",
+            "{tmp}/ariadne",
+        ],
+    },
+}
+
+
+def _spin() -> None:
+    """A CPU-bound process: the load beside the measured command."""
+    while True:
+        pass
+
+
+def _run(argv: list[str], extra: list[str], tmp: str) -> dict[str, float]:
+    """Run ``lightcurve`` with ``argv`` and return its wall and CPU seconds (process tree)."""
+    args = [sys.executable, "-m", "lightcurve", *extra, *(a.format(tmp=tmp) for a in argv)]
+    start = time.perf_counter()
+    process = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(process.pid, 0)
+    wall = time.perf_counter() - start
+    stderr = process.stderr.read().decode()
+    process.stderr.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{shlex.join(args)} failed:\n{stderr}")
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime}
+
+
+def _measure(name: str, extra: list[str], repeats: int, warmup: bool) -> dict[str, float]:
+    """Best-of-``repeats`` wall and CPU time of command ``name`` (inputs prepared untimed;
+    with ``warmup`` one untimed run first, so on-disk compile caches are filled)."""
+    spec = COMMANDS[name]
+    with tempfile.TemporaryDirectory() as tmp:
+        for argv in spec["setup"]:
+            _run(argv, extra, tmp)
+        if warmup:
+            _run(spec["timed"], extra, tmp)
+        runs = [_run(spec["timed"], extra, tmp) for _ in range(repeats)]
+    return {key: min(run[key] for run in runs) for key in ("wall_s", "cpu_s")}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--load", type=int, default=2, help="busy-loop processes beside it")
+    parser.add_argument("--repeats", type=int, default=1, help="runs per phase (best taken)")
+    parser.add_argument(
+        "--commands", default=",".join(COMMANDS), help="comma-separated: " + ", ".join(COMMANDS)
+    )
+    parser.add_argument(
+        "--threads", type=int, help="pass --threads N to every command (default: its own)"
+    )
+    parser.add_argument("--out", type=Path, help="also write the JSON here")
+    args = parser.parse_args(argv)
+    names = [name.strip() for name in args.commands.split(",") if name.strip()]
+    unknown = sorted(set(names) - set(COMMANDS))
+    if unknown:
+        parser.error(f"unknown commands {unknown}; choose from {sorted(COMMANDS)}")
+    extra = [] if args.threads is None else ["--threads", str(args.threads)]
+
+    results = {}
+    for name in names:
+        quiet_load = os.getloadavg()[0]
+        quiet = _measure(name, extra, args.repeats, warmup=True)
+        spinners = [multiprocessing.Process(target=_spin, daemon=True) for _ in range(args.load)]
+        for process in spinners:
+            process.start()
+        try:
+            time.sleep(1.0)
+            loaded_load = os.getloadavg()[0]
+            loaded = _measure(name, extra, args.repeats, warmup=False)
+        finally:
+            for process in spinners:
+                process.terminate()
+                process.join()
+        results[name] = {
+            "quiet": quiet,
+            "loaded": loaded,
+            "cpu_ratio": loaded["cpu_s"] / quiet["cpu_s"],
+            "wall_ratio": loaded["wall_s"] / quiet["wall_s"],
+            "load_average_quiet": quiet_load,
+            "load_average_loaded": loaded_load,
+        }
+    report = {
+        "benchmark": "commands under load",
+        "load_processes": args.load,
+        "threads_option": args.threads,
+        "machine": machine_info(),
+        "results": results,
+    }
+    text = json.dumps(report, indent=2)
+    print(text)
+    if args.out:
+        atomic_write_json(args.out, report)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
