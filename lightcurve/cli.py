@@ -156,7 +156,9 @@ def _thread_count(text: str) -> int:
     try:
         count = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of threads, got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number of threads, got {text!r}"
+        ) from None
     if count < 1:
         raise argparse.ArgumentTypeError(f"the thread count must be at least 1, got {count}")
     return count
