@@ -110,7 +110,7 @@ COMMANDS: dict[str, dict[str, list[list[str]]]] = {
         "setup": [],
         "timed": [
             "invert",
-            "data/observations/box_ccd_tumbling.csv",
+            "data/observations/box_tumbling_ccd.csv",
             "--shapes",
             "box_wing,rocket_body,box,cylinder,plate,cube",
             "--method",
