@@ -172,6 +172,11 @@ def test_mean_of_constant_source_is_the_extinction_corrected_magnitude():
     assert np.all(np.isfinite(mags)) and not measured.columns["saturated"].any()
     standard_error = mags.std() / math.sqrt(n)
     assert abs(mags.mean() - 11.0) < 3 * standard_error
+    # The flux is unbiased; the magnitude only by the second-order term (2.5/ln 10) σ_F²/2.
+    flux = 10 ** (-0.4 * (mags - 11.0))
+    assert abs(flux.mean() - 1.0) < 3 * flux.std() / math.sqrt(n)
+    bias = np.mean(0.5 * (measured.error / (2.5 / math.log(10))) ** 2 * 2.5 / math.log(10))
+    assert abs(mags.mean() - bias - 11.0) < 2 * standard_error
     extinction = measured.columns["extinction_mag"]
     np.testing.assert_allclose(extinction, 0.2 * measured.columns["airmass"])
     # Without the correction the magnitudes are those seen through the atmosphere.
