@@ -186,8 +186,12 @@ def orbit_geometry(
     Returns
     -------
     Observations
-        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS).
+        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS) and the object's horizon
+        coordinates at the site, ``range_km``, ``elevation_deg``, ``azimuth_deg`` (WGS84
+        vertical) and ``airmass`` (Kasten & Young 1989).
     """
+    from lightcurve.topocentric import airmass, horizontal_from_gcrs
+
     mjd = np.asarray(mjd, dtype=float)
     r_obj = orbit.position(mjd)
     r_site = site_position(site, mjd)
@@ -209,11 +213,16 @@ def orbit_geometry(
         a[keep] for a in (mjd, r_obj, r_site, r_sun, to_observer)
     )
     to_sun = r_sun - r_obj
+    elevation, azimuth, distance = horizontal_from_gcrs(site, mjd, -to_observer)
     table = pd.DataFrame(
         {
             "mjd": mjd,
             **{f"sun_{a}": to_sun[:, k] for k, a in enumerate("xyz")},
             **{f"obs_{a}": to_observer[:, k] for k, a in enumerate("xyz")},
+            "range_km": distance,
+            "elevation_deg": elevation,
+            "azimuth_deg": azimuth,
+            "airmass": airmass(elevation),
         }
     )
     meta = {

@@ -225,6 +225,13 @@ def test_elevation_from_the_site_in_the_header():
         validate_table(table, "g.csv", {"site": site.label}, False), {"site": site.label}, "g.csv"
     )
     np.testing.assert_allclose(observation_elevation(bare), elevation, atol=1e-7)
+    # The noise model takes the elevation either way, with the same draws.
+    full = Observations(validate_table(geometry.table(), "g.csv", {}, False), {}, "g.csv")
+    noise = ObservingNoise(load_conditions(None, ["site.altitude_m=2790"]))
+    a = noise.measure(np.full(50, 11.0), bare, np.random.default_rng(4))
+    b = noise.measure(np.full(50, 11.0), full, np.random.default_rng(4))
+    np.testing.assert_allclose(a.magnitude, b.magnitude, atol=1e-9)
+    assert "elevation_deg" in a.columns and "elevation_deg" not in b.columns
     # A bare observatory name in the header works too (the Starlink data sets write it).
     named = Observations(bare.table, {"site": "Mount Lemmon"}, "g.csv")
     np.testing.assert_allclose(observation_elevation(named), elevation, atol=1e-3)
