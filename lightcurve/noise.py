@@ -216,10 +216,10 @@ def _recorded_site(geometry: Observations) -> Site | None:
 def observation_elevation(geometry: Observations) -> np.ndarray:
     """Elevation of the object at the observing site for every row (deg).
 
-    The file's ``elevation_deg`` column when present (``lightcurve geometry --tle``,
+    The file's ``elevation_deg`` column when present (every ``lightcurve geometry`` route,
     ``lightcurve import``); otherwise computed from the site recorded in the header
-    (``# site: name (lat, lon, alt m)``, written by every ``lightcurve geometry`` route)
-    and the object → observer vectors (GCRS).
+    (``# site: name (lat, lon, alt m)`` or an observatory name) and the object → observer
+    vectors (GCRS).
 
     Raises
     ------
@@ -307,6 +307,12 @@ class ObservingNoise:
                 )
             altitude = site.altitude_m
         exposure = _exposure(geometry)
+        if exposure is not None and not np.all(exposure > 0):
+            row = int(np.flatnonzero(~(exposure > 0))[0])
+            raise ValueError(
+                f"{geometry.source or 'geometry'}, row {row + 1}, column 'exposure_s': "
+                f"exposure must be > 0 s, got {exposure[row]}"
+            )
         budget = conditions.budget(
             magnitude,
             elevation,

@@ -247,6 +247,9 @@ def test_clear_errors():
         noise.measure(np.full(3, 10.0), constant_source([30.0, -1.0, 20.0]), None)
     with pytest.raises(ValueError, match=r"altitude_m"):
         noise.measure(np.full(2, 10.0), constant_source([30.0, 40.0], site=None), None)
+    zero = constant_source([30.0, 40.0], exposure_s=[1.0, 0.0])
+    with pytest.raises(ValueError, match=r"row 2, column 'exposure_s': exposure must be > 0"):
+        noise.measure(np.full(2, 10.0), zero, None)
     asteroid = Observations(no_site, {"site": MOUNT_LEMMON.label, "frame": "ecliptic J2000"})
     with pytest.raises(ValueError, match="frame"):
         noise.measure(np.full(3, 10.0), asteroid, None)
