@@ -331,3 +331,21 @@ def test_simulate_command_with_conditions(tmp_path, capsys):
         == 2
     )
     assert "--condition" in capsys.readouterr().err
+
+
+def test_circular_orbit_geometry_has_the_horizon_columns():
+    """The circular-orbit route writes WGS84 elevations and airmasses, never below the horizon."""
+    from lightcurve.ephemeris import CircularOrbit, orbit_geometry
+    from lightcurve.topocentric import airmass, horizontal_from_gcrs
+
+    mjd = 60379.1 + np.arange(600) * 60.0 / 86400.0
+    orbit = CircularOrbit(7000.0, 51.6, 20.0, 0.0, mjd[0])
+    geometry = orbit_geometry(orbit, MOUNT_LEMMON, mjd, "leo", None, None)
+    table = geometry.table
+    assert 0 < len(table) < mjd.size and np.all(table["elevation_deg"] > 0)
+    elevation, _, distance = horizontal_from_gcrs(
+        MOUNT_LEMMON, geometry.mjd, -geometry.observer_vectors / 1e3
+    )
+    np.testing.assert_allclose(table["elevation_deg"], elevation, atol=1e-9)
+    np.testing.assert_allclose(table["range_km"], distance, rtol=1e-12)
+    np.testing.assert_allclose(table["airmass"], airmass(elevation))
