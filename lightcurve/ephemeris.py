@@ -175,27 +175,37 @@ def orbit_geometry(
         Object name for the metadata.
     min_elevation_deg : float or None
         Keep only epochs with the object at least this high above the site's horizon (a
-        spherical-Earth horizon); None keeps all.
+        spherical-Earth horizon); None keeps all above the (WGS84) horizon.
     max_sun_elevation_deg : float or None
         Keep only epochs when the Sun is at most this high at the site (−12°: nautical
         twilight); None keeps all.
 
     Epochs with the object in the Earth's shadow (cylindrical umbra) are always dropped:
-    the renderer does not model eclipses.
+    the renderer does not model eclipses; so are epochs with the object below the site's
+    WGS84 horizon (not observable, and without an airmass).
 
     Returns
     -------
     Observations
-        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS).
+        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS) and the object's horizon
+        coordinates at the site, ``range_km``, ``elevation_deg``, ``azimuth_deg`` (WGS84
+        vertical) and ``airmass`` (Kasten & Young 1989).
     """
+    from lightcurve.sites import site_itrs
+    from lightcurve.topocentric import airmass, horizontal_from_itrs
+
     mjd = np.asarray(mjd, dtype=float)
     r_obj = orbit.position(mjd)
-    r_site = site_position(site, mjd)
+    itrs_to_gcrs = frame_rotations(mjd).itrs_to_gcrs  # as site_position, kept for the horizon
+    r_site = itrs_to_gcrs @ site_itrs(site)
     r_sun = sun_position(mjd)
     to_observer = r_site - r_obj
+    elevation, azimuth, distance = horizontal_from_itrs(
+        site, np.einsum("nji,nj->ni", itrs_to_gcrs, -to_observer)
+    )
     up = r_site / np.linalg.norm(r_site, axis=1, keepdims=True)
     sun_dir = r_sun / np.linalg.norm(r_sun, axis=1, keepdims=True)
-    keep = ~earth_shadow(r_obj, r_sun, "cylindrical").in_umbra
+    keep = ~earth_shadow(r_obj, r_sun, "cylindrical").in_umbra & (elevation > 0.0)
     if min_elevation_deg is not None:
         los = -to_observer / np.linalg.norm(to_observer, axis=1, keepdims=True)
         keep &= np.sum(up * los, axis=1) >= np.sin(np.deg2rad(min_elevation_deg))
@@ -205,8 +215,8 @@ def orbit_geometry(
         raise ValueError(
             "no epoch has the object sunlit, above the minimum elevation and the site dark"
         )
-    mjd, r_obj, r_site, r_sun, to_observer = (
-        a[keep] for a in (mjd, r_obj, r_site, r_sun, to_observer)
+    mjd, r_obj, r_sun, to_observer, elevation, azimuth, distance = (
+        a[keep] for a in (mjd, r_obj, r_sun, to_observer, elevation, azimuth, distance)
     )
     to_sun = r_sun - r_obj
     table = pd.DataFrame(
@@ -214,6 +224,10 @@ def orbit_geometry(
             "mjd": mjd,
             **{f"sun_{a}": to_sun[:, k] for k, a in enumerate("xyz")},
             **{f"obs_{a}": to_observer[:, k] for k, a in enumerate("xyz")},
+            "range_km": distance,
+            "elevation_deg": elevation,
+            "azimuth_deg": azimuth,
+            "airmass": airmass(elevation),
         }
     )
     meta = {

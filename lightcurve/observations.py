@@ -17,7 +17,8 @@ curve), ``relative`` (bool; the light curve has an arbitrary magnitude offset), 
 columns ``q1 q2 q3 q4 wx wy wz`` (attitude inertial → body, body rates in rad/s), and the
 geometry of Earth satellites written by ``geometry --tle`` and ``import``: ``shadow``
 (sunlit, penumbra, umbra, annular), ``sunlit_fraction``, ``phase_angle_deg``, ``range_km``,
-``elevation_deg``, ``azimuth_deg``, ``airmass``, ``tle_age_days``.
+``elevation_deg``, ``azimuth_deg``, ``airmass``, ``tle_age_days``, and those of a
+simulation under observing conditions: ``extinction_mag`` (mag) and ``saturated`` (bool).
 
 Kilometres and MJD are the file units; the accessors (:attr:`Observations.times`,
 :attr:`Observations.sun_vectors`, …) return SI values (s, m).
@@ -61,7 +62,16 @@ GEOMETRY_NUMERIC = (
     "tle_age_days",
 )
 GEOMETRY_COLUMNS = ("shadow", *GEOMETRY_NUMERIC)
-OPTIONAL_NUMERIC = ("exposure_s", "lightcurve_id", *TRUTH_COLUMNS, *GEOMETRY_NUMERIC)
+#: Written by ``simulate`` under observing conditions (``lightcurve.noise.ObservingNoise``).
+CONDITIONS_COLUMNS = ("extinction_mag", "saturated")
+OPTIONAL_NUMERIC = (
+    "exposure_s",
+    "lightcurve_id",
+    *TRUTH_COLUMNS,
+    *GEOMETRY_NUMERIC,
+    "extinction_mag",
+)
+FLAG_COLUMNS = ("relative", "saturated")
 KNOWN_COLUMNS = (
     "epoch",
     "mjd",
@@ -74,6 +84,7 @@ KNOWN_COLUMNS = (
     "relative",
     *TRUTH_COLUMNS,
     *GEOMETRY_COLUMNS,
+    *CONDITIONS_COLUMNS,
 )
 
 # Plausible ranges (km) used to catch vectors given in the wrong unit.
@@ -435,8 +446,9 @@ def validate_table(
         "epochs are not in increasing order",
     )
 
-    if "relative" in table:
-        table["relative"] = table["relative"].astype(str).str.lower().isin(("1", "true", "yes"))
+    for name in FLAG_COLUMNS:
+        if name in table:
+            table[name] = table[name].astype(str).str.lower().isin(("1", "true", "yes"))
     if "filter" in table:
         table["filter"] = table["filter"].astype(str)
 

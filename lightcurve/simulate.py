@@ -5,155 +5,34 @@ attitude core's DOP853 integrator, renders the magnitudes with
 :class:`~lightcurve.render.Renderer`, adds noise, and returns an observation table with
 ``mag``, ``mag_err`` and the truth columns ``q1 q2 q3 q4 wx wy wz`` (rad/s).
 
-Noise models
-------------
-:class:`GaussianNoise`
-    ``mag_obs = mag + N(0, σ²)``, ``mag_err = σ``.
-:class:`CCDNoise`
-    Photon counting on a CCD: source electrons ``S = t A 10^(−0.4 (m − ZP))`` (``A`` the
-    collecting area, ``ZP`` the magnitude giving 1 e⁻ s⁻¹ m⁻²), sky electrons per pixel
-    ``B = t A Ω_pix 10^(−0.4 (μ_sky − ZP))``, ``n_pix`` pixels in the photometric aperture,
-    read noise ``R`` e⁻ and gain ``g`` e⁻/ADU (quantisation ``g²/12`` per pixel):
-    ``σ_S² = S + n_pix (B + R² + g²/12)`` (the CCD equation, Howell 2006, eq. 4.4).
-    Counts are drawn from Poisson (source + sky) and normal (read noise) distributions and
-    the sky is subtracted; ``mag_err = 2.5/ln 10 · σ_S / S``.
+The noise models (:class:`GaussianNoise`, :class:`CCDNoise`, :class:`ObservingNoise`) live
+in :mod:`lightcurve.noise` and are re-exported here.
 
-Epochs when the object is dark (no lit facet visible) and, with the CCD model,
+Epochs when the object is dark (no lit facet visible) and, with the photon-counting models,
 non-detections (measured counts ≤ 0) cannot be measured: they are dropped and counted in
-the metadata (``dropped_dark``, ``dropped_nondetections``).
+the metadata (``dropped_dark``, ``dropped_nondetections``), as are rows a noise model asks
+to drop (``dropped_<reason>``, e.g. ``dropped_saturated``).
 """
 
 from __future__ import annotations
-
-import math
-from dataclasses import asdict, dataclass
-from typing import Protocol
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from filters.attitude import quaternion_normalize, validate_inertia
+from lightcurve.noise import CCDNoise, GaussianNoise, Measurement, NoiseModel, ObservingNoise
 from lightcurve.observations import TRUTH_COLUMNS, Observations, validate_table
 from lightcurve.render import Renderer
 from shapes import FacetModel
 
-__all__ = ["CCDNoise", "GaussianNoise", "NoiseModel", "simulate", "truth_states"]
-
-_MAG_PER_LN = 2.5 / math.log(10.0)
-
-
-class NoiseModel(Protocol):
-    """Turns true magnitudes into measured magnitudes and their 1σ errors."""
-
-    def apply(
-        self, magnitude: np.ndarray, exposure_s: np.ndarray | None, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]: ...
-
-    def describe(self) -> str: ...
-
-
-@dataclass(frozen=True)
-class GaussianNoise:
-    """Gaussian magnitude noise of standard deviation ``sigma`` (mag)."""
-
-    sigma: float
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.sigma) and self.sigma > 0):
-            raise ValueError(f"noise sigma must be a positive magnitude, got {self.sigma}")
-
-    def apply(
-        self, magnitude: np.ndarray, exposure_s: np.ndarray | None, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]:
-        noisy = magnitude + rng.normal(0.0, self.sigma, magnitude.shape)
-        return noisy, np.full_like(magnitude, self.sigma)
-
-    def describe(self) -> str:
-        return f"gaussian sigma={self.sigma} mag"
-
-
-@dataclass(frozen=True)
-class CCDNoise:
-    """Photon-counting CCD photometry (see the module docstring).
-
-    Parameters
-    ----------
-    aperture_m : float
-        Telescope aperture diameter (m); the collecting area is ``π (D/2)²``.
-    exposure_s : float
-        Exposure time (s), unless the geometry has an ``exposure_s`` column.
-    zero_point : float
-        Magnitude giving 1 e⁻ s⁻¹ per m² of collecting area (24.0 ≈ V band with a
-        typical 40 % system throughput).
-    sky_mag_arcsec2 : float
-        Sky surface brightness (mag arcsec⁻²).
-    pixel_scale_arcsec : float
-        Pixel size on the sky (arcsec).
-    aperture_radius_px : float
-        Photometric aperture radius (pixels).
-    read_noise_e : float
-        Read noise (e⁻ rms per pixel).
-    gain_e_per_adu : float
-        Gain (e⁻/ADU).
-    """
-
-    aperture_m: float = 0.5
-    exposure_s: float = 1.0
-    zero_point: float = 24.0
-    sky_mag_arcsec2: float = 20.0
-    pixel_scale_arcsec: float = 1.5
-    aperture_radius_px: float = 3.0
-    read_noise_e: float = 10.0
-    gain_e_per_adu: float = 1.5
-
-    def __post_init__(self) -> None:
-        for name, value in asdict(self).items():
-            if name not in ("zero_point", "sky_mag_arcsec2") and not (
-                math.isfinite(value) and value > 0
-            ):
-                raise ValueError(f"CCD parameter {name} must be positive, got {value}")
-
-    @property
-    def collecting_area_m2(self) -> float:
-        return math.pi * (0.5 * self.aperture_m) ** 2
-
-    @property
-    def n_pixels(self) -> float:
-        return math.pi * self.aperture_radius_px**2
-
-    def electrons(self, magnitude: np.ndarray, exposure_s: np.ndarray) -> np.ndarray:
-        """Expected source electrons for magnitudes and exposure times."""
-        return exposure_s * self.collecting_area_m2 * 10.0 ** (-0.4 * (magnitude - self.zero_point))
-
-    def sky_electrons_per_pixel(self, exposure_s: np.ndarray) -> np.ndarray:
-        """Expected sky electrons per pixel."""
-        return (
-            exposure_s
-            * self.collecting_area_m2
-            * self.pixel_scale_arcsec**2
-            * 10.0 ** (-0.4 * (self.sky_mag_arcsec2 - self.zero_point))
-        )
-
-    def apply(
-        self, magnitude: np.ndarray, exposure_s: np.ndarray | None, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]:
-        t = np.full_like(magnitude, self.exposure_s) if exposure_s is None else exposure_s
-        source = self.electrons(magnitude, t)
-        sky = self.sky_electrons_per_pixel(t) * self.n_pixels
-        per_pixel_var = self.read_noise_e**2 + self.gain_e_per_adu**2 / 12.0
-        measured = (
-            rng.poisson(source + sky).astype(float)
-            - sky
-            + rng.normal(0.0, math.sqrt(self.n_pixels * per_pixel_var), magnitude.shape)
-        )
-        with np.errstate(invalid="ignore", divide="ignore"):
-            noisy = magnitude - 2.5 * np.log10(measured / source)
-            sigma = np.sqrt(measured.clip(0) + sky + self.n_pixels * per_pixel_var)
-            error = _MAG_PER_LN * sigma / measured
-        return np.where(measured > 0, noisy, np.nan), np.where(measured > 0, error, np.nan)
-
-    def describe(self) -> str:
-        return "ccd " + " ".join(f"{k}={v}" for k, v in asdict(self).items())
+__all__ = [
+    "CCDNoise",
+    "GaussianNoise",
+    "NoiseModel",
+    "ObservingNoise",
+    "simulate",
+    "truth_states",
+]
 
 
 def truth_states(
@@ -254,16 +133,21 @@ def simulate(
     renderer = Renderer(shape, shadows=shadows)
     magnitude = renderer.magnitude(states[:, :4], geometry.sun_vectors, geometry.observer_vectors)
     dark = ~np.isfinite(magnitude)
-    exposure = geometry.table["exposure_s"].to_numpy() if "exposure_s" in geometry.table else None
     if noise is None:
-        measured, error = magnitude, np.full_like(magnitude, 1e-6)
+        measurement = Measurement(magnitude, np.full_like(magnitude, 1e-6))
     else:
-        measured, error = noise.apply(np.where(dark, 0.0, magnitude), exposure, rng)
+        measurement = noise.measure(np.where(dark, 0.0, magnitude), geometry, rng)
+    measured = measurement.magnitude
     nondetected = ~dark & ~np.isfinite(measured)
     keep = ~dark & ~nondetected
+    dropped = {reason: mask & keep for reason, mask in measurement.drop.items()}
+    for mask in dropped.values():
+        keep &= ~mask
     table = geometry.table.loc[keep].drop(columns=["mag", "mag_err"], errors="ignore").copy()
     table["mag"] = measured[keep]
-    table["mag_err"] = error[keep]
+    table["mag_err"] = measurement.error[keep]
+    for name, values in measurement.columns.items():
+        table[name] = np.asarray(values)[keep]
     for k, column in enumerate(TRUTH_COLUMNS):
         table[column] = states[keep, k]
     meta = dict(geometry.meta)
@@ -283,6 +167,12 @@ def simulate(
         meta["dropped_dark"] = str(int(dark.sum()))
     if nondetected.any():
         meta["dropped_nondetections"] = str(int(nondetected.sum()))
+    for reason, mask in dropped.items():
+        if mask.any():
+            meta[f"dropped_{reason}"] = str(int(mask.sum()))
     if not keep.any():
-        raise ValueError("the object is dark or undetected at every epoch")
+        raise ValueError(
+            "the object is dark or undetected at every epoch"
+            + (f" (or dropped as {', '.join(dropped)})" if dropped else "")
+        )
     return Observations(validate_table(table, geometry.source, meta), meta, geometry.source)

@@ -20,7 +20,7 @@ import numpy as np
 
 from lightcurve.ephemeris import Site
 
-__all__ = ["SITES_PATH", "get_site", "load_sites", "site_itrs"]
+__all__ = ["SITES_PATH", "get_site", "load_sites", "site_from_label", "site_itrs"]
 
 SITES_PATH = Path(__file__).resolve().parents[1] / "data" / "sites" / "observatories.csv"
 _COLUMNS = ("name", "latitude_deg", "longitude_deg", "altitude_m", "aliases", "source")
@@ -124,3 +124,27 @@ def site_itrs(site: Site) -> np.ndarray:
         1, np.deg2rad(site.longitude_deg), np.deg2rad(site.latitude_deg), site.altitude_m
     )
     return np.asarray(xyz) / 1000.0
+
+
+_LABEL = re.compile(
+    r"^(?P<name>.*?)\s*\((?P<lat>[-+\d.]+),\s*(?P<lon>[-+\d.]+),\s*(?P<alt>[-+\d.]+) m\)$"
+)
+
+
+def site_from_label(label: str) -> Site:
+    """The :class:`Site` of a file header's ``site`` entry.
+
+    Headers written by the toolkit record ``name (lat, lon, alt m)``
+    (:attr:`Site.label`, coordinates to 10⁻⁴ deg and 1 m); a bare observatory name or
+    ``LAT,LON,ALT_M`` is looked up as by :func:`get_site`.
+
+    Raises
+    ------
+    ValueError
+        When the entry is neither.
+    """
+    match = _LABEL.match(label.strip())
+    if match:
+        lat, lon, alt = (float(match[k]) for k in ("lat", "lon", "alt"))
+        return Site(lat, lon, alt, match["name"] or "site")
+    return get_site(label)

@@ -16,6 +16,7 @@ from lightcurve.sites import site_itrs
 __all__ = [
     "airmass",
     "east_north_up",
+    "horizontal_from_gcrs",
     "horizontal_from_itrs",
     "itrs_from_horizontal",
     "range_from_height",
@@ -53,6 +54,29 @@ def horizontal_from_itrs(site: Site, topocentric_km: np.ndarray) -> tuple[np.nda
     elevation = np.rad2deg(np.arcsin(np.clip(enu[..., 2] / distance, -1.0, 1.0)))
     azimuth = np.rad2deg(np.arctan2(enu[..., 0], enu[..., 1])) % 360.0
     return elevation, azimuth, distance
+
+
+def horizontal_from_gcrs(
+    site: Site, mjd: np.ndarray, topocentric_km: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Elevation and azimuth (deg) and range (km) of site → object GCRS vectors.
+
+    The vectors are rotated into the ITRS with :func:`lightcurve.frames.frame_rotations`
+    (astropy's Earth orientation, interpolated), then as :func:`horizontal_from_itrs`.
+
+    Parameters
+    ----------
+    site : Site
+    mjd : (n,) array
+        UTC epochs of the vectors.
+    topocentric_km : (n, 3) array
+        Site → object vectors, GCRS, km.
+    """
+    from lightcurve.frames import frame_rotations
+
+    itrs_to_gcrs = frame_rotations(mjd).itrs_to_gcrs
+    itrs = np.einsum("nji,nj->ni", itrs_to_gcrs, np.asarray(topocentric_km, dtype=float))
+    return horizontal_from_itrs(site, itrs)
 
 
 def itrs_from_horizontal(

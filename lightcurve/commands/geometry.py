@@ -9,9 +9,9 @@ observation or photometry file (--epochs-from FILE, whose other columns are kept
 span only epochs with the object above --min-elevation and the site in darkness (Sun below
 --max-sun-elevation) are kept, and epochs in the Earth's umbra are dropped (--umbra flag
 keeps them; with --epochs-from they are kept unless --umbra drop). The file has the
-observation-file columns without mag/mag_err (GCRS vectors, km; UTC epochs) and, for TLEs,
-the shadow state, sunlit fraction, phase angle, range, elevation, azimuth and airmass; it
-can be passed to `lightcurve simulate`.
+observation-file columns without mag/mag_err (GCRS vectors, km; UTC epochs), the range,
+elevation, azimuth and airmass at the site and, for TLEs, the shadow state, sunlit fraction
+and phase angle; it can be passed to `lightcurve simulate`.
 """
 
 from __future__ import annotations

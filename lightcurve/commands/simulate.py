@@ -4,7 +4,15 @@ GEOMETRY is an observation file (CSV, Parquet) whose mag columns may be absent. 
 --q0/--omega0 holds at its first epoch; the body tumbles torque-free with the shape's
 inertia (or --inertia). The output is an observation file with mag and mag_err filled and
 the truth columns q1 q2 q3 q4 (inertial→body) and wx wy wz (rad/s) added. Epochs when the
-object is dark, or undetected under --ccd, are dropped and counted in the file's header.
+object is dark, or undetected under --ccd or --conditions, are dropped and counted in the
+file's header.
+
+Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
+the observing conditions of a telescope and site (--conditions FILE.toml or a name in
+data/telescopes/, e.g. half_metre; --condition TABLE.KEY=VALUE overrides one value and may
+be given alone to start from the 0.5 m defaults): extinction with airmass, seeing losses,
+sky, dark current, read noise, gain, scintillation and saturation, with the columns
+extinction_mag and saturated added (see docs/rendering.md).
 """
 
 from __future__ import annotations
@@ -15,8 +23,9 @@ import numpy as np
 
 from lightcurve import io
 from lightcurve.commands._args import float_vector, inertia_tensor
+from lightcurve.conditions import load_conditions
 from lightcurve.render import SHADOW_MODES
-from lightcurve.simulate import CCDNoise, GaussianNoise, simulate
+from lightcurve.simulate import CCDNoise, GaussianNoise, ObservingNoise, simulate
 from shapes import get_library
 
 NAME = "simulate"
@@ -60,6 +69,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         + ", ".join(CCDNoise.__dataclass_fields__)
         + " (defaults: a 0.5 m telescope, 1 s exposures)",
     )
+    noise.add_argument(
+        "--conditions",
+        metavar="FILE.toml|NAME",
+        help="observing conditions: a TOML file with [telescope] [detector] [site] [sky] "
+        "[photometry] tables, or a name in data/telescopes/ (half_metre)",
+    )
+    parser.add_argument(
+        "--condition",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=VALUE",
+        help="override one observing condition (repeatable), e.g. site.seeing_fwhm_arcsec=1.5 "
+        "or photometry.saturated=drop; alone, starts from the 0.5 m defaults",
+    )
     parser.add_argument("--shadows", choices=SHADOW_MODES, default="auto")
     parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
@@ -84,10 +107,14 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 def run(args: argparse.Namespace) -> int:
     geometry = io.read(args.geometry, require_magnitudes=False)
     shape = get_library(args.library).load(args.shape, visibility=args.shadows != "none")
+    if args.condition and (args.noise_mag is not None or args.ccd is not None):
+        raise ValueError("--condition goes with --conditions (or alone), not --noise-mag/--ccd")
     if args.noise_mag is not None:
         noise = GaussianNoise(args.noise_mag)
     elif args.ccd is not None:
         noise = _ccd(args.ccd)
+    elif args.conditions is not None or args.condition:
+        noise = ObservingNoise(load_conditions(args.conditions, args.condition))
     else:
         noise = None
     result = simulate(
@@ -101,13 +128,20 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     io.write(result, args.out)
+    notes = [
+        f"{result.meta[key]} {what} dropped"
+        for key, what in (
+            ("dropped_dark", "dark epochs"),
+            ("dropped_nondetections", "non-detections"),
+            ("dropped_saturated", "saturated points"),
+        )
+        if key in result.meta
+    ]
+    if "saturated" in result.table and result.table["saturated"].any():
+        notes.append(f"{int(result.table['saturated'].sum())} saturated points flagged")
     print(
         f"{args.out}: {len(result)} measurements of {shape.name}, "
         f"mag {result.magnitudes.min():.2f}..{result.magnitudes.max():.2f}"
-        + (
-            f", {result.meta['dropped_dark']} dark epochs dropped"
-            if "dropped_dark" in result.meta
-            else ""
-        )
+        + "".join(f", {note}" for note in notes)
     )
     return 0
