@@ -21,14 +21,14 @@ HELP = "propagate a tumbling rigid body (torque-free) and print its state"
 ORDER = 90
 
 # Seed 000 scenario A (a nutating body) as the default demonstration.
-_SEED000_INERTIA = "0.85,1.37,1.0,0.13,0.17,-0.11"
+_NUTATION_INERTIA = "0.85,1.37,1.0,0.13,0.17,-0.11"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--inertia",
         type=inertia_tensor,
-        default=inertia_tensor(_SEED000_INERTIA),
+        default=inertia_tensor(_NUTATION_INERTIA),
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
         help="body-frame inertia (any unit; default: seed 000 scenario A)",
     )

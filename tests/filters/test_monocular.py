@@ -152,7 +152,7 @@ def _scenario(name: str, **changes):
 
 def test_scenario_a_converges_with_the_papers_setup():
     """Acceptance 1, reduced: 4 seeded runs of 1600 s (the benchmark runs 50 of 2000 s)."""
-    sc = _scenario("seed000_nutation.toml", duration=1600.0)
+    sc = _scenario("nutation.toml", duration=1600.0)
     assert np.allclose(np.diag(sc.q), 1e-3) and np.allclose(np.diag(sc.r), 1e-3)
     study = run_study(sc, runs=4, seed=7)
     conv = convergence(study)
@@ -167,7 +167,7 @@ def test_scenario_a_converges_with_the_papers_setup():
 
 def test_scenario_b_inertia_does_not_converge():
     """Acceptance 2 (filter side): in pure spin Lxx, Lyy, Lxz keep their prior and their σ grows."""
-    sc = _scenario("seed000_pure_spin.toml", duration=400.0)
+    sc = _scenario("pure_spin.toml", duration=400.0)
     study = run_study(sc, runs=1, seed=3)
     l_true = normalized_from_inertia(sc.truth.inertia)
     sig = study.history.sigmas[:, 0, 6:]
@@ -182,7 +182,7 @@ def test_scenario_b_inertia_does_not_converge():
 
 def test_tanh_form_converges_for_a_principal_axis_body():
     """The k-form variant on a nutating body whose principal axes are the first camera frame."""
-    sc = _scenario("seed000_nutation.toml", duration=1500.0, inertia=np.diag([0.85, 1.37, 1.0]))
+    sc = _scenario("nutation.toml", duration=1500.0, inertia=np.diag([0.85, 1.37, 1.0]))
     k_true = tanh_from_inertia(np.diag([0.85, 1.37, 1.0]))
     n = 8
     sc = dataclasses.replace(
