@@ -1,4 +1,4 @@
-"""Seed 000 study: monocular attitude, rate and inertia estimation (acceptance of issue 8).
+"""Monocular attitude, rate and inertia estimation study (Deng et al. 2024).
 
 Prints one JSON document with
 

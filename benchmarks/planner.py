@@ -1,4 +1,4 @@
-"""Observation planning studies (seed 001): lander imaging and photometric scheduling.
+"""Observation planning studies (Li et al. 2024): lander imaging and photometric scheduling.
 
 ``lander``: planned landmark imaging for an Eros landing, 100 seeded Monte Carlo runs. The
 paper's table 3 rebuilt for the three strategies (images used; position, velocity and attitude
@@ -387,7 +387,7 @@ def lander(runs: int, seed: int) -> dict:
     summary = summarize(study)
     figure(study, FIGURE)
     return {
-        "study": "seed 001 planned landmark imaging, Eros landing",
+        "study": "planned landmark imaging (Li et al. 2024), Eros landing",
         "scenario": str(SCENARIO.relative_to(ROOT)),
         "runs": runs,
         "seed": seed,

@@ -201,7 +201,7 @@ class BatchProblem:
         Principal axes (columns) of each shape, used when the tanh inertia parameters
         ``k`` are estimated (``J = P diag(J(k)) Pᵀ``).
     estimate_inertia : bool
-        Add the tanh parameters ``k = [k1, k2]`` (seed 004) to the unknowns.
+        Add the tanh parameters ``k = [k1, k2]`` (Feng et al.) to the unknowns.
     max_step : float
         Largest RK4 step of the propagation (s). RK4's error per step on a rotation by
         ``θ = |ω| h`` is about ``θ⁵/3840`` rad: 1.4·10⁻⁶ rad at 5°/s and 4 s, 0.01° over

@@ -1,4 +1,4 @@
-"""Landing relative navigation near a rotating small body (seed 001 sec. 1).
+"""Landing relative navigation near a rotating small body (Li et al. 2024, sec. 1).
 
 Frames
 ------

@@ -1,4 +1,4 @@
-"""Fisher-information observation planning (seed 001 sec. 2, eqs. 19–23).
+"""Fisher-information observation planning (Li et al. 2024, sec. 2, eqs. 19–23).
 
 After a filter update at step ``k`` the planner predicts ahead and picks the step ``k + s``,
 ``s ∈ [1, s_max]``, of the next observation; the estimator only propagates in between. The
@@ -889,7 +889,7 @@ def select_keyframes(
 
 @dataclass(frozen=True)
 class MonocularKeyframeModel:
-    """The monocular EKF of seed 000 (:class:`filters.monocular.MonocularEKF`) as a
+    """The monocular EKF of Deng et al. 2024 (:class:`filters.monocular.MonocularEKF`) as a
     :class:`PlanningModel` over a sequence of frames.
 
     Means are the EKF's nominal states ``[q, ω, p]``; step ``k`` is frame ``times[k]``. The

@@ -1,4 +1,4 @@
-"""Fisher-information observation planning for small-body landing navigation (seed 001).
+"""Fisher-information observation planning for small-body landing navigation (Li et al. 2024).
 
 Runs ``--runs`` seeded Monte Carlo descents of the scenario and navigates each with three
 image strategies on the same random draws: an image at every step, the seed's criterion
@@ -25,7 +25,7 @@ from lightcurve.scenarios.landing import (
 NAME = "plan"
 
 
-HELP = "plan landmark images of a small-body landing by Fisher information (seed 001)"
+HELP = "plan landmark images of a small-body landing by Fisher information (Li et al. 2024)"
 
 
 ORDER = 64

@@ -1,4 +1,4 @@
-"""Small-body landing scenarios for observation planning (seed 001): the scenario file, the
+"""Small-body landing scenarios for observation planning (Li et al. 2024): the scenario file, the
 Monte Carlo study of the three imaging strategies, and its summary.
 
 The ``lightcurve plan`` command is a thin layer over this module.

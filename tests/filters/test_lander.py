@@ -1,5 +1,5 @@
 """Lander dynamics, landmark measurements, the (iterated) EKF and planned imaging on a
-shortened seed-001 descent."""
+shortened version of the Eros descent of Li et al. 2024."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Monocular EKF of seed 000: Jacobians against autograd, filter algebra, scenarios A and B."""
+"""Monocular EKF of Deng et al. 2024: Jacobians against autograd, filter algebra, scenarios A and B."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ rates = st.lists(st.floats(-0.3, 0.3), min_size=3, max_size=3)
 
 
 def _exact_error_rate(delta: torch.Tensor, omega_hat: torch.Tensor, p: torch.Tensor, form: str):
-    """Nonlinear ``d/dt [δq_v, δω, δp]`` for ``δq = q ⊗ q̂⁻¹`` (seed 000 eqs. 25–31 exact)."""
+    """Nonlinear ``d/dt [δq_v, δω, δp]`` for ``δq = q ⊗ q̂⁻¹`` (Deng et al. 2024, eqs. 25–31 exact)."""
     spec = FORMS[form]
     dq = torch.cat([delta[:3], torch.sqrt(1 - delta[:3] @ delta[:3])[None]])
     omega = omega_hat + delta[3:6]

@@ -72,7 +72,7 @@ def test_a_chart_counts_the_rank_in_local_coordinates():
 
 
 def test_scenario_a_is_fully_observable_at_the_true_state():
-    """Acceptance 1: rank 11 (seed 000 eq. 21) with a clear singular-value gap."""
+    """Acceptance 1: rank 11 (Deng et al. 2024, eq. 21) with a clear singular-value gap."""
     x = np.r_[0, 0, 0, 1.0, np.radians([5.0, 2.3, 3.5]), normalized_from_inertia(J_A)]
     test = observability_at(x, "L", max_order=4)
     assert test.rank == 11 and test.full

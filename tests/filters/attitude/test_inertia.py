@@ -1,4 +1,4 @@
-"""Inertia parameterisations and validity checks (seeds 000 and 004)."""
+"""Inertia parameterisations and validity checks (Deng et al. 2024; Feng et al.)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Analytic Jacobians against torch autograd (seed 000 eqs. 27–31, seed 004 tanh form)."""
+"""Analytic Jacobians against torch autograd (Deng et al. 2024, eqs. 27–31; Feng et al.'s tanh form)."""
 
 import numpy as np
 import torch

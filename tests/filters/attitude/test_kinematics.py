@@ -1,4 +1,4 @@
-"""Kinematics: Ω(ω) of seed 000 eq. 11 and its equivalent forms."""
+"""Kinematics: Ω(ω) of Deng et al. 2024, eq. 11 and its equivalent forms."""
 
 import numpy as np
 

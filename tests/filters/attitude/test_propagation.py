@@ -21,7 +21,7 @@ from filters.attitude import (
     torque_free_trajectory,
 )
 
-# Seed 000 scenario A: a nutating body (J and ω0 of the paper).
+# The nutating body of Deng et al. 2024, scenario A (J and ω0 of the paper).
 J_NUTATION = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 OMEGA_NUTATION = np.deg2rad([5.0, 2.3, 3.5])
 
