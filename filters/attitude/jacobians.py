@@ -1,9 +1,9 @@
 """Analytic Jacobians of the attitude dynamics for extended Kalman filters.
 
-The error state of the monocular EKF (Deng et al. 2024) is ``δx = [δq_v, δω, δl]`` (11 entries) with the
-multiplicative attitude error ``δq = q ⊗ q̂⁻¹`` (vector part, half the small rotation angle),
-``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` the free entries of ``L = J/Jzz``. Its linearised dynamics
-are ``δẋ = C δx`` with (Deng et al. 2024, eqs. 27–31)
+The error state of the monocular EKF (Deng et al. 2024) is ``δx = [δq_v, δω, δl]``
+(11 entries) with the multiplicative attitude error ``δq = q ⊗ q̂⁻¹`` (vector part, half the
+small rotation angle), ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` the free entries of ``L = J/Jzz``.
+Its linearised dynamics are ``δẋ = C δx`` with (Deng et al. 2024, eqs. 27–31)
 
 ``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]``,
 ``M = −∂(L⁻¹[ω×]Lω)/∂ω``, ``N = −∂(L⁻¹[ω×]Lω)/∂l``.
@@ -42,7 +42,7 @@ _BASIS[4, 1, 2] = _BASIS[4, 2, 1] = 1.0
 
 
 def euler_rate_jacobian(omega: Any, inertia: Any) -> Any:
-    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×]J)`` of the torque-free Euler equations (``M`` of Deng et al. 2024).
+    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×]J)`` of the torque-free Euler equations (Deng et al.'s ``M``).
 
     Parameters
     ----------
@@ -127,8 +127,8 @@ def error_state_matrix(omega: Any, params: Any, form: str = "L") -> Any:
     omega : (..., 3) array
         Estimated body rates (rad/s).
     params : (..., 5) or (..., 2) array
-        ``[Lxx, Lyy, Lxy, Lxz, Lyz]`` (form ``"L"``, Deng et al. 2024) or ``[k1, k2]`` (form ``"k"``,
-        the principal-axis tanh form of Feng et al.).
+        ``[Lxx, Lyy, Lxy, Lxz, Lyz]`` (form ``"L"``, Deng et al. 2024) or ``[k1, k2]``
+        (form ``"k"``, the principal-axis tanh form of Feng et al.).
     form : {"L", "k"}
 
     Returns

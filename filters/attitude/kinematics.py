@@ -2,8 +2,8 @@
 
 * Kinematics ``q̇ = ½ Ω(ω) q`` with ``ω`` the body rate in the body frame (rad/s) and
   ``Ω(ω) = [[−[ω×], ω], [−ωᵀ, 0]]`` (Deng et al. 2024, eq. 11).
-* Euler's equations ``J ω̇ = τ − ω × J ω`` with ``J`` in the body frame (Deng et al. 2024, eq. 12);
-  with the normalised tensor ``L = J / Jzz`` this is ``ω̇ = −L⁻¹ [ω×] L ω`` (Deng et al. 2024, eq. 14),
+* Euler's equations ``J ω̇ = τ − ω × J ω`` with ``J`` in the body frame (Deng et al. 2024,
+  eq. 12); with the normalised tensor ``L = J / Jzz`` this is ``ω̇ = −L⁻¹ [ω×] L ω`` (eq. 14),
   and in principal axes with the ratios ``p`` (Feng et al.) ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]``.
 
 The full state used for propagation is ``x = [q1, q2, q3, q4, ωx, ωy, ωz]``.

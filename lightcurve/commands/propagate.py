@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=inertia_tensor,
         default=inertia_tensor(_NUTATION_INERTIA),
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
-        help="body-frame inertia (any unit; default: the nutating body of data/scenarios/nutation.toml)",
+        help="body-frame inertia (any unit; default: data/scenarios/nutation.toml)",
     )
     parser.add_argument(
         "--q0",

@@ -1,5 +1,5 @@
 """Spherical-harmonic gravity: potential against an independent Legendre evaluation,
-acceleration against the numerical gradient (issue 9, acceptance 4), point-mass limit."""
+acceleration against the numerical gradient , point-mass limit."""
 
 from __future__ import annotations
 

@@ -151,7 +151,8 @@ def test_known_attitude_filter_estimates_position_only():
 
 
 def test_planned_imaging_direction_with_eight_runs(scenario):
-    # Acceptance 1 and 2 are measured with 100 runs in benchmarks/planner.py; here 8 seeded runs.
+    # The image-count and accuracy ratios are measured with 100 runs in benchmarks/planner.py;
+    # here 8 seeded runs.
     draws = draw(scenario, 8, np.random.default_rng(8))
     runs = compare_strategies(scenario, draws)
     stats = {name: error_statistics(scenario, run, draws) for name, run in runs.items()}

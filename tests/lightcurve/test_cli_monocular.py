@@ -65,7 +65,7 @@ def test_nutation_run_writes_the_summary_contract(tmp_path):
     assert summary["observability_rank"] == 11
     assert len(summary["L"]) == len(summary["L_sigma"]) == len(summary["L_error"]) == 5
     assert summary["attitude_error_deg"] < 0.5
-    # 150 s is too short for the inertia (acceptance needs ~1500 s): it must not claim success.
+    # 150 s is too short for the inertia (success needs ~1500 s): it must not claim success.
     assert summary["success"] is False and summary["converged"] is False
     mc = summary["monte_carlo"]
     assert mc["runs"] == 3 and 0.0 <= mc["success_rate"] <= 1.0

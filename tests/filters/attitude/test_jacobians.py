@@ -1,4 +1,4 @@
-"""Analytic Jacobians against torch autograd (Deng et al. 2024, eqs. 27–31; Feng et al.'s tanh form)."""
+"""Analytic Jacobians against torch autograd (Deng et al. 2024, eqs. 27–31; the tanh form)."""
 
 import numpy as np
 import torch
