@@ -17,7 +17,8 @@ Measurement (Gou et al. 2016, sec. 2.3; ``docs/rendering.md``):
 is taken by torch autograd through the renderer (a magnitude depends on the attitude at its
 epoch only; the rates enter through the dynamics). The Fisher information of the epoch is
 ``F_k = h_kᵀ h_k / σ_k²`` (Li et al. 2024, eq. 20), a rank-one matrix: one magnitude never
-bounds the attitude alone, so Li et al.'s ``min tr F⁻¹`` does not apply and a budget of epochs is chosen for the smallest final attitude covariance
+bounds the attitude alone, so Li et al.'s ``min tr F⁻¹`` does not apply and a budget of
+epochs is chosen for the smallest final attitude covariance
 (:func:`~filters.planner.greedy_schedule` with an exchange pass, via
 :func:`~filters.planner.plan_final_covariance`; the sequential
 :class:`~filters.planner.PosteriorRollout` on request).
