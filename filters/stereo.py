@@ -22,7 +22,7 @@ Model
   (Feng et al., eqs. 21–22) with white noise of ``f σ_θ`` pixels, ``σ_θ`` the angular noise.
 
 The feature positions ``s_i`` are **known** to the filter (the paper's table 2 lists them);
-they define the body frame, so the state is the seed's ``[δθ, ω, k, ρ, ρ̇]`` (14 errors).
+they define the body frame, so the state is the paper's ``[δθ, ω, k, ρ, ρ̇]`` (14 errors).
 
 Filter
 ------

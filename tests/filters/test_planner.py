@@ -1,4 +1,4 @@
-"""Observation planner: information algebra, the seed's criterion, the budgeted rollout and
+"""Observation planner: information algebra, Li et al.'s criterion, the budgeted rollout and
 keyframe selection on synthetic monocular (quaternion + pixel) data."""
 
 from __future__ import annotations
