@@ -35,7 +35,7 @@ from lightcurve.scenarios.monocular import (
 NAME = "monocular"
 
 
-HELP = "attitude, rate and inertia of a tumbling target from monocular images (Deng et al. 2024)"
+HELP = "attitude, rate and inertia of a tumbling target from images (Deng et al. 2024)"
 
 
 ORDER = 60

@@ -25,7 +25,7 @@ from lightcurve.scenarios.landing import (
 NAME = "plan"
 
 
-HELP = "plan landmark images of a small-body landing by Fisher information (Li et al. 2024)"
+HELP = "plan landmark images of a small-body landing, Fisher information (Li et al. 2024)"
 
 
 ORDER = 64
