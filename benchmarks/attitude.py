@@ -19,7 +19,7 @@ import torch
 from benchmarks._machine import machine_info
 from filters.attitude import random_quaternion, rk4_step, torque_free_derivative
 
-J_SEED000 = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
+J_NUTATION = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 
 
 def time_steps(x, derivative, repeats: int) -> float:
@@ -47,9 +47,9 @@ def main() -> None:
     for backend in ("numpy", "torch"):
         for n in (1_000, 10_000, 100_000):
             x = np.concatenate([random_quaternion(n, rng), rng.normal(0, 0.05, (n, 3))], axis=1)
-            inertia = J_SEED000
+            inertia = J_NUTATION
             if backend == "torch":
-                x, inertia = torch.tensor(x), torch.tensor(J_SEED000)
+                x, inertia = torch.tensor(x), torch.tensor(J_NUTATION)
             seconds = time_steps(x, torque_free_derivative(inertia), args.repeats)
             results.append(
                 {

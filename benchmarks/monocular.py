@@ -1,4 +1,4 @@
-"""Seed 000 study: monocular attitude, rate and inertia estimation (acceptance of issue 8).
+"""Monocular attitude, rate and inertia estimation study (Deng et al. 2024).
 
 Prints one JSON document with
 
@@ -53,7 +53,7 @@ SWEEP_DEG = (0.01, 0.05, 0.1, 0.2, 0.5)
 def _observability() -> dict[str, Any]:
     out = {}
     # B is pushed to order 7 (every order computed) although its rank stalls at 8 from order 2.
-    for key, name, order in (("A", "seed000_nutation.toml", 4), ("B", "seed000_pure_spin.toml", 7)):
+    for key, name, order in (("A", "nutation.toml", 4), ("B", "pure_spin.toml", 7)):
         sc = load_monocular_scenario(SCENARIOS / name)
         x = np.concatenate(
             [[0, 0, 0, 1.0], sc.truth.omega0, sc.form.from_inertia(sc.truth.inertia)]
@@ -72,7 +72,7 @@ def _observability() -> dict[str, Any]:
 
 
 def _scenario_a(runs: int, seed: int, figures: Path | None) -> dict[str, Any]:
-    sc = load_monocular_scenario(SCENARIOS / "seed000_nutation.toml")
+    sc = load_monocular_scenario(SCENARIOS / "nutation.toml")
     start = time.perf_counter()
     study = run_study(sc, runs, seed)
     seconds = time.perf_counter() - start
@@ -96,7 +96,7 @@ def _scenario_a(runs: int, seed: int, figures: Path | None) -> dict[str, Any]:
 
 
 def _scenario_b(runs: int, seed: int, figures: Path | None) -> dict[str, Any]:
-    sc = load_monocular_scenario(SCENARIOS / "seed000_pure_spin.toml")
+    sc = load_monocular_scenario(SCENARIOS / "pure_spin.toml")
     study = run_study(sc, runs, seed)
     err = convergence(study)["errors"]["inertia"]
     sig = study.history.sigmas[..., 6:]
@@ -121,7 +121,7 @@ def _scenario_b(runs: int, seed: int, figures: Path | None) -> dict[str, Any]:
 
 
 def _noise_sweep(runs: int, seed: int) -> list[dict[str, Any]]:
-    base = load_monocular_scenario(SCENARIOS / "seed000_nutation.toml")
+    base = load_monocular_scenario(SCENARIOS / "nutation.toml")
     rows = []
     for sigma_deg in SWEEP_DEG:
         sc = dataclasses.replace(base, sigma=math.radians(sigma_deg))
@@ -135,7 +135,7 @@ def _noise_sweep(runs: int, seed: int) -> list[dict[str, Any]]:
 def _pixels(
     runs: int, seed: int, reference: dict[str, Any], figures: Path | None
 ) -> dict[str, Any]:
-    sc = load_monocular_scenario(SCENARIOS / "seed000_nutation_pixels.toml")
+    sc = load_monocular_scenario(SCENARIOS / "nutation_pixels.toml")
     start = time.perf_counter()
     study = run_study(sc, runs, seed)
     seconds = time.perf_counter() - start
@@ -190,7 +190,7 @@ def _pixels(
 
 
 def _speed(seed: int) -> dict[str, Any]:
-    sc = load_monocular_scenario(SCENARIOS / "seed000_nutation.toml")
+    sc = load_monocular_scenario(SCENARIOS / "nutation.toml")
     out = {}
     for batch in (1, 50):
         ekf = MonocularEKF(np.tile(sc.x0, (batch, 1)), sc.p0, sc.q, sc.r)

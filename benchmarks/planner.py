@@ -1,16 +1,17 @@
-"""Observation planning studies (seed 001): lander imaging and photometric scheduling.
+"""Observation planning studies (Li et al. 2024): lander imaging and photometric scheduling.
 
 ``lander``: planned landmark imaging for an Eros landing, 100 seeded Monte Carlo runs. The
 paper's table 3 rebuilt for the three strategies (images used; position, velocity and attitude
 error standard deviations after the settle time, Monte Carlo mean and spread), their ratios
-(issue 9 acceptance 1 and 2), the predicted window covariance that the improved criterion
-minimises; figure of the observation times along the trajectory (like the paper's fig. 10),
-``docs/figures/planner_observation_times.png``.
+(the Fisher-trace criterion's image fraction and position std against imaging every step,
+the improved criterion's position std against the Fisher-trace one), the predicted window
+covariance that the improved criterion minimises; figure of the observation times along the
+trajectory (like the paper's fig. 10), ``docs/figures/planner_observation_times.png``.
 
-``photometric``: which epochs of a tumbling box-wing's light curve to observe with a budget
-(issue 9 acceptance 3). Final attitude covariance trace of the planned epochs over that of
-uniform spacing, through the same covariance recursion, for seeded tumbling states over a
-night's geometry (GEO from Mount Lemmon) with 6 and 11 error states and several budgets, plus
+``photometric``: which epochs of a tumbling box-wing's light curve to observe with a budget.
+Final attitude covariance trace of the planned epochs over that of uniform spacing, through
+the same covariance recursion, for seeded tumbling states over a night's geometry (GEO from
+Mount Lemmon) with 6 and 11 error states and several budgets, plus
 the 20-minute sample geometry with the sequential rollout planner and a plan made on a
 perturbed estimate but scored on the truth; figure ``docs/figures/planner_photometric.png``.
 
@@ -94,10 +95,10 @@ def predicted_window(study: Study) -> dict:
         name: np.trace(run.covariances[settle:, :, :3, :3], axis1=-2, axis2=-1).sum(axis=0)
         for name, run in study.runs.items()
     }
-    ratio = sums["improved"] / sums["seed"]
+    ratio = sums["improved"] / sums["fisher_trace"]
     return {
         "mean_m2_s": {name: float(v.mean()) for name, v in sums.items()},
-        "improved_over_seed_mean": float(ratio.mean()),
+        "improved_over_fisher_trace_mean": float(ratio.mean()),
         "improved_lower_fraction_of_runs": float(np.mean(ratio < 1)),
     }
 
@@ -106,7 +107,7 @@ def paired(study: Study) -> dict:
     """Paired comparison improved vs seed (same draws): mean ratio and its standard error."""
     out = {}
     for key in ("position_std", "position_rms", "attitude_std"):
-        ratio = study.statistics["improved"][key] / study.statistics["seed"][key]
+        ratio = study.statistics["improved"][key] / study.statistics["fisher_trace"][key]
         out[key] = {
             "mean_ratio": float(ratio.mean()),
             "standard_error": float(ratio.std(ddof=1) / np.sqrt(len(ratio))),
@@ -116,7 +117,7 @@ def paired(study: Study) -> dict:
 
 
 def figure(study: Study, path: Path) -> None:
-    """Trajectory of run 0 with the image times of each strategy (cf. seed fig. 10)."""
+    """Trajectory of run 0 with the image times of each strategy (cf. Li et al. 2024, fig. 10)."""
     scenario = study.scenario
     site = scenario.model.landmarks.site
     truth = site.from_body(study.draws.truth[:, 0, :3])
@@ -124,10 +125,10 @@ def figure(study: Study, path: Path) -> None:
     fig = plt.figure(figsize=(11, 4.8))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     ax.plot(*truth.T, color="0.6", lw=1, label="trajectory (run 0)")
-    styles = {"seed": ("o", "tab:blue", 40), "improved": ("^", "tab:red", 10)}
+    styles = {"fisher_trace": ("o", "tab:blue", 40), "improved": ("^", "tab:red", 10)}
     for name, (marker, color, size) in styles.items():
         taken = study.runs[name].taken[:, 0]
-        face = "none" if name == "seed" else color
+        face = "none" if name == "fisher_trace" else color
         ax.scatter(
             *truth[taken].T,
             marker=marker,
@@ -347,7 +348,7 @@ def photometric_figure(model, x0, studies: dict, hours: np.ndarray, path: Path) 
 
 
 def photometric(runs: int, seed: int, cadence_s: float) -> dict:
-    """Acceptance 3: planned vs uniform photometric epochs (JSON section)."""
+    """Planned vs uniform photometric epochs (JSON section)."""
     shape = shapes.get_library().load("box_wing")
     start = time.perf_counter()
     info, rows, (model, x0), studies, hours = night_study(
@@ -357,7 +358,7 @@ def photometric(runs: int, seed: int, cadence_s: float) -> dict:
     short = short_study(shape, runs, seed, budget=24)
     worst = max(row["ratio_over_uniform"]["planned"]["max"] for row in [*rows, short])
     return {
-        "study": "photometric scheduling, tumbling box-wing (issue 9 acceptance 3)",
+        "study": "photometric scheduling, tumbling box-wing",
         "shape": "box_wing",
         "runs": runs,
         "seed": seed,
@@ -372,7 +373,7 @@ def photometric(runs: int, seed: int, cadence_s: float) -> dict:
         "night": {**info, "table": rows},
         "short": short,
         "acceptance": {
-            "3_planned_lower_than_uniform_every_run_and_case": bool(worst < 1.0),
+            "planned_lower_than_uniform_every_run_and_case": bool(worst < 1.0),
             "worst_ratio": worst,
         },
         "seconds": round(time.perf_counter() - start, 1),
@@ -381,13 +382,13 @@ def photometric(runs: int, seed: int, cadence_s: float) -> dict:
 
 
 def lander(runs: int, seed: int) -> dict:
-    """Acceptance 1, 2 and 5: the seed scenario (JSON section)."""
+    """Planned landmark imaging on the Eros landing scenario (JSON section)."""
     scenario = load_scenario(SCENARIO)
     study = run_study(scenario, runs, seed)
     summary = summarize(study)
     figure(study, FIGURE)
     return {
-        "study": "seed 001 planned landmark imaging, Eros landing",
+        "study": "planned landmark imaging (Li et al. 2024), Eros landing",
         "scenario": str(SCENARIO.relative_to(ROOT)),
         "runs": runs,
         "seed": seed,
@@ -397,17 +398,22 @@ def lander(runs: int, seed: int) -> dict:
             for name, entry in summary["strategies"].items()
         },
         "comparison": summary["comparison"],
-        "paired_improved_vs_seed": paired(study),
+        "paired_improved_vs_fisher_trace": paired(study),
         "predicted_window_position_variance": predicted_window(study),
         "observation_times_run0_s": {
             name: summary["strategies"][name]["observation_times_s"][0] for name in STRATEGIES
         },
         "paper": summary["paper"],
         "acceptance": {
-            "1_seed_images_le_60pct": summary["comparison"]["seed_images_fraction"] <= 0.6,
-            "1_seed_position_std_le_1p3x": summary["comparison"]["seed_vs_every_step_position_std"]
+            "fisher_trace_images_le_60pct": summary["comparison"]["fisher_trace_images_fraction"]
+            <= 0.6,
+            "fisher_trace_position_std_le_1p3x": summary["comparison"][
+                "fisher_trace_vs_every_step_position_std"
+            ]
             <= 1.3,
-            "2_improved_lower_position_std": summary["comparison"]["improved_vs_seed_position_std"]
+            "improved_lower_position_std": summary["comparison"][
+                "improved_vs_fisher_trace_position_std"
+            ]
             < 1.0,
         },
         "seconds": {"total": study.seconds, "per_run": study.seconds / runs},

@@ -1,4 +1,4 @@
-"""Seed 004's Monte Carlo tables 4–7 for the stereo relative-state and inertia EKF.
+"""Feng et al.'s Monte Carlo tables 4–7 for the stereo relative-state and inertia EKF.
 
 Runs the nominal scenario (table 4) and the three sweeps of the paper — feature count
 3/4/6/9/12 (table 5), target size 0.2–3 m (table 6), angular noise 1–8e-5 rad at 0.6 m
@@ -28,7 +28,7 @@ from lightcurve.scenarios.stereo import load_stereo_scenario
 
 NOMINAL = Path(__file__).resolve().parents[1] / "data" / "scenarios" / "stereo_nominal.toml"
 
-# (table, swept field, values, fixed fields) as in seed 004 sec. 3.
+# (table, swept field, values, fixed fields) as in Feng et al., sec. 3.
 SWEEPS = (
     ("table5_features", "feature_count", (3, 4, 6, 9, 12),
      {"target_size": 1.0, "angle_noise": 1e-5}),

@@ -2,8 +2,8 @@
 
 Frames: points are given in the camera frame (x right, y down, z along the optical axis,
 metres). Pixel coordinates ``(u, v)`` have their origin at the top-left image corner.
-The intrinsic matrix is ``K = [[fx, 0, u0], [0, fy, v0], [0, 0, 1]]`` (seed 000 eq. 1;
-seed 001 eq. 12 with ``fx = fy = f`` and the principal point at the origin).
+The intrinsic matrix is ``K = [[fx, 0, u0], [0, fy, v0], [0, 0, 1]]`` (Deng et al. 2024, eq. 1;
+Li et al. 2024, eq. 12 with ``fx = fy = f`` and the principal point at the origin).
 """
 
 from __future__ import annotations

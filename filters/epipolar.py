@@ -1,4 +1,4 @@
-"""Relative rotation of a non-cooperative target from matched pixel tracks (seed 000 sec. 1).
+"""Relative rotation of a non-cooperative target from matched pixel tracks (Deng et al. 2024).
 
 Between two frames a body point moves as ``P₂ = R_Δ P₁ + t_Δ`` in the camera frame (eq. 3),
 so matched normalised image points satisfy the epipolar constraint ``x₂ᵀ E x₁ = 0`` with the

@@ -2,7 +2,7 @@
 
 Body-fixed feature points (e.g. the vertices of a library shape) are rotated with the
 target's attitude, placed at the target's position in the camera frame and projected into
-pixels with noise (seed 000 eqs. 1–7). A point is tracked in a frame when it is in front of
+pixels with noise (Deng et al. 2024, eqs. 1–7). A point is tracked in a frame when it is in front of
 the camera and inside the image, faces the camera (back-facing points are culled: exact
 self-occlusion for a convex body) and, when an occlusion test is given, no part of the body
 lies between it and the camera (non-convex bodies).

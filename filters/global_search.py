@@ -2,7 +2,7 @@
 
 A light curve's likelihood over ``(q, ω)`` is a sharp, multi-modal 6-D landscape: a
 particle filter started uniform on SO(3) × a rate ball does not find its peak (measured on
-a tumbling box-wing: final error ~100° after 40 min with 2·10⁴ particles, DESIGN.md). What
+a tumbling box-wing: final error ~100° after 40 min with 2·10⁴ particles). What
 works is a search over the *initial* state ``x₀ = (q₀, ω₀[, k][, shape])`` at the first
 measurement epoch, which determines the whole trajectory under torque-free motion:
 
@@ -201,7 +201,7 @@ class BatchProblem:
         Principal axes (columns) of each shape, used when the tanh inertia parameters
         ``k`` are estimated (``J = P diag(J(k)) Pᵀ``).
     estimate_inertia : bool
-        Add the tanh parameters ``k = [k1, k2]`` (seed 004) to the unknowns.
+        Add the tanh parameters ``k = [k1, k2]`` (Feng et al.) to the unknowns.
     max_step : float
         Largest RK4 step of the propagation (s). RK4's error per step on a rotation by
         ``θ = |ω| h`` is about ``θ⁵/3840`` rad: 1.4·10⁻⁶ rad at 5°/s and 4 s, 0.01° over
@@ -799,9 +799,9 @@ def _best_distinct(
     after dropping duplicates of better ones (:func:`distinct_states`).
 
     Refined candidates collapse onto few minima: on a 120 s window, 128 survivors measured
-    3 distinct states (box-wing, acceptance 1, seed 0 run 17), the best 24 of them all
-    copies of a wrong minimum 20° from the truth while the truth's minimum, χ² 66.4 against
-    63.6, ranked 25th and was lost; on the 240 s window that follows, the truth's fit is
+    3 distinct states (run 17 of the box-wing UKF study, random seed 0), the best 24 of them
+    all copies of a wrong minimum 20° from the truth while the truth's minimum, χ² 66.4
+    against 63.6, ranked 25th and was lost; on the 240 s window that follows, the truth's fit is
     82.5 and the wrong one's 120.7. Keeping distinct states carries every minimum on.
     """
     cost = candidates.chi2
@@ -835,10 +835,10 @@ def _replenish(
     taken in turn best first.
 
     The refinement concentrates candidates in few minima (five distinct states out of 128
-    on a 120 s window, acceptance 1, seed 0 run 18), and weakly observed rates leave a
-    survivor several degrees from the minimum the longer windows favour without being in
-    its basin. The slots that duplicates would have taken explore the survivors'
-    uncertainty instead, at no extra cost per stage.
+    on a 120 s window in run 18 of the box-wing UKF study, random seed 0), and weakly
+    observed rates leave a survivor several degrees from the minimum the longer windows
+    favour without being in its basin. The slots that duplicates would have taken explore
+    the survivors' uncertainty instead, at no extra cost per stage.
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """Gravity of a small body: point mass plus normalised spherical harmonics.
 
-The exterior potential of seed 001 eq. 3 (Kaula's form, geodesy sign convention ``U = ∇V``),
+The exterior potential of Li et al. 2024, eq. 3 (Kaula's form, geodesy sign convention ``U = ∇V``),
 
 ``V = μ/a Σ_{n=0}^{N} Σ_{m=0}^{n} (a/r)^{n+1} P̄_nm(sin φ) (C̄_nm cos mλ + S̄_nm sin mλ)``,
 
@@ -36,7 +36,7 @@ __all__ = [
     "normalization_factor",
 ]
 
-#: Gravitational parameter of 433 Eros (m³/s²), seed 001 table 1 (Yeomans et al. 2000).
+#: Gravitational parameter of 433 Eros (m³/s²), Li et al. 2024, table 1 (Yeomans et al. 2000).
 EROS_MU = 446300.0
 #: Reference radius (m) of the Eros coefficients below (Miller et al. 2002).
 EROS_REFERENCE_RADIUS = 16000.0
@@ -65,7 +65,7 @@ def normalization_factor(n: int, m: int) -> float:
 
 @dataclass(frozen=True)
 class SphericalHarmonicGravity:
-    """Spherical-harmonic gravity field of a small body (seed 001 eqs. 2–3).
+    """Spherical-harmonic gravity field of a small body (Li et al. 2024, eqs. 2–3).
 
     Parameters
     ----------
@@ -198,7 +198,7 @@ class SphericalHarmonicGravity:
         return total
 
     def potential(self, position: Any) -> Any:
-        """Gravitational potential ``V`` (m²/s², positive, ``U = ∇V``), seed 001 eq. 3.
+        """Gravitational potential ``V`` (m²/s², positive, ``U = ∇V``), Li et al. 2024, eq. 3.
 
         Parameters
         ----------
@@ -213,7 +213,7 @@ class SphericalHarmonicGravity:
         return self.mu / self.radius * xp.real(self._contract(zz, "potential"))
 
     def acceleration(self, position: Any) -> Any:
-        """Gravitational acceleration ``U = ∂V/∂r`` (m/s²), seed 001 eq. 2.
+        """Gravitational acceleration ``U = ∂V/∂r`` (m/s²), Li et al. 2024, eq. 2.
 
         Montenbruck & Gill (2000) eq. 3.33, the exact derivative of :meth:`potential`.
 

@@ -1,4 +1,4 @@
-"""Landing relative navigation near a rotating small body (seed 001 sec. 1).
+"""Landing relative navigation near a rotating small body (Li et al. 2024, sec. 1).
 
 Frames
 ------
@@ -6,7 +6,7 @@ Frames
 ``W``  landing-site frame: origin at the site, axes east, north, up (``up`` radial).
 ``C``  camera frame: ``z`` along the optical axis, ``x`` right, ``y`` down (pixels).
 
-Dynamics (seed eqs. 1 and 5, constant spin ``ω``, known control acceleration ``F``)::
+Dynamics (Li et al. 2024, eqs. 1 and 5, constant spin ``ω``, known control acceleration ``F``)::
 
     r̈ = F + U(r) − 2 ω × ṙ − ω × (ω × r),     x = [r, ṙ] in L
 
@@ -17,12 +17,12 @@ with ``U`` from :mod:`filters.gravity`. Landmark camera measurement (eqs. 6–8)
 ``A(q)`` is the passive attitude of the camera relative to ``L`` (``v_C = A v_L``, the
 attitude core's convention). The EKF (eqs. 9–18) estimates ``[r, ṙ]`` and, optionally, a
 small attitude error ``δθ`` of the camera, ``A_true = (I − [δθ×]) Â`` (multiplicative,
-small-angle vector part), which the seed's tables 2–3 start at 2° and report.
+small-angle vector part), which Li et al.'s tables 2–3 start at 2° and report.
 
 Everything is batched over independent Monte Carlo runs ``B``: means ``(B, 10)``
 (``[r, ṙ]`` and the attitude correction quaternion), covariances ``(B, n, n)`` with ``n = 9``
 (or 6 with known attitude). :func:`draw`, :func:`navigate` and :func:`compare_strategies`
-run the seed's Monte Carlo study (sec. 4) for the three image strategies.
+run Li et al.'s Monte Carlo study (sec. 4) for the three image strategies.
 """
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ class DescentTrajectory:
 
 @dataclass(frozen=True)
 class LanderDynamics:
-    """Lander dynamics in the rotating body-fixed frame (seed eqs. 1 and 5).
+    """Lander dynamics in the rotating body-fixed frame (Li et al. 2024, eqs. 1 and 5).
 
     Parameters
     ----------
@@ -215,7 +215,7 @@ class LanderDynamics:
         return a
 
     def transition(self, x: np.ndarray, dt: float, order: int = 4) -> np.ndarray:
-        """``Φ = I + A Δt + A² Δt²/2 + …`` to ``order`` (seed eq. 10), ``(…, 6, 6)``.
+        """``Φ = I + A Δt + A² Δt²/2 + …`` to ``order`` (Li et al. 2024, eq. 10), ``(…, 6, 6)``.
 
         ``A Δt`` is nilpotent up to the tiny gravity-gradient and Coriolis terms, so four
         terms reach rounding for ``Δt`` of seconds.
@@ -308,7 +308,7 @@ def anchor_pixels(camera: PinholeCamera, count: int, fill: float = 0.8) -> np.nd
 
 @dataclass(frozen=True)
 class LandmarkMap:
-    """Known surface landmarks ``r_pi`` around the landing site (seed eq. 6).
+    """Known surface landmarks ``r_pi`` around the landing site (Li et al. 2024, eq. 6).
 
     Parameters
     ----------
@@ -412,7 +412,7 @@ class LandmarkMap:
 def ekf_update(
     p: np.ndarray, h: np.ndarray, residual: np.ndarray, sigma: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Batched EKF update with ``R = σ² I`` in Joseph form (seed eqs. 14, 16, 18).
+    """Batched EKF update with ``R = σ² I`` in Joseph form (Li et al. 2024, eqs. 14, 16, 18).
 
     Parameters
     ----------
@@ -569,7 +569,7 @@ class LanderModel:
 
         The iterated form (Bell & Cathey 1993) repeats the update from the prior with ``H``
         taken at the latest iterate, until the correction changes by less than 1e-10 (m, m/s,
-        rad) or ``iterations`` is reached; one iteration is the seed's EKF. With 0.06 px noise
+        rad) or ``iterations`` is reached; one iteration is Li et al.'s EKF. With 0.06 px noise
         and a 1 m initial error a single linearisation leaves decimetre errors with a
         millimetre covariance, so the scenario iterates.
 
@@ -613,7 +613,7 @@ class LanderModel:
 
 @dataclass(frozen=True)
 class LandingScenario:
-    """The seed's landing scenario: navigation model, commanded descent and filter settings.
+    """The landing scenario of Li et al. 2024: navigation model, commanded descent, filter settings.
 
     Parameters
     ----------
@@ -629,7 +629,7 @@ class LandingScenario:
     s_max : int
         Largest planned interval (steps).
     iterations : int
-        Measurement-update iterations (1 = the seed's EKF).
+        Measurement-update iterations (1 = Li et al.'s EKF).
     truth_substeps : int
         RK4 substeps per step of the truth.
     """
@@ -716,7 +716,7 @@ def navigate(
     planner: Any = None,
     budget: np.ndarray | None = None,
 ) -> NavigationRun:
-    """Run the navigation filter on every drawn descent (seed fig. 2).
+    """Run the navigation filter on every drawn descent (Li et al. 2024, fig. 2).
 
     The first image is taken at step 0. Without a planner an image is taken at every step;
     with an :class:`filters.planner.ObservationPlanner` the next image step is planned after
@@ -805,32 +805,32 @@ def navigation_errors(scenario: LandingScenario, run: NavigationRun, draws: Draw
 
 
 #: Strategies compared by :func:`compare_strategies` (and ``lightcurve plan``).
-STRATEGIES = ("every_step", "seed", "improved")
+STRATEGIES = ("every_step", "fisher_trace", "improved")
 
 
 def compare_strategies(scenario: LandingScenario, draws: Draws) -> dict[str, NavigationRun]:
     """Run the three observation strategies on the same draws.
 
     ``every_step``
-        An image at every step (the seed's reference).
-    ``seed``
-        The seed's criterion ``min tr(F⁻¹)`` (eq. 23) on the position block, the part of the
-        seed's state ``[r, ṙ]`` an image informs.
+        An image at every step (Li et al.'s reference).
+    ``fisher_trace``
+        Li et al.'s criterion ``min tr(F⁻¹)`` (eq. 23) on the position block, the part of
+        their state ``[r, ṙ]`` an image informs.
     ``improved``
         :class:`filters.planner.PosteriorRollout` on the position covariance over the
-        window after ``settle_step``, with each run's budget equal to the images the seed
-        criterion used in that run.
+        window after ``settle_step``, with each run's budget equal to the images the
+        Fisher-trace criterion used in that run.
     """
     position = (0, 1, 2)
-    seed_planner = ObservationPlanner(FisherTrace(position), scenario.s_max, scenario.steps)
+    trace_planner = ObservationPlanner(FisherTrace(position), scenario.s_max, scenario.steps)
     improved_planner = ObservationPlanner(
         PosteriorRollout(position, settle_step=scenario.settle_step),
         scenario.s_max,
         scenario.steps,
     )
     runs = {"every_step": navigate(scenario, draws)}
-    runs["seed"] = navigate(scenario, draws, seed_planner)
-    budget = runs["seed"].taken.sum(axis=0)
+    runs["fisher_trace"] = navigate(scenario, draws, trace_planner)
+    budget = runs["fisher_trace"].taken.sum(axis=0)
     runs["improved"] = navigate(scenario, draws, improved_planner, budget)
     return runs
 
@@ -838,13 +838,13 @@ def compare_strategies(scenario: LandingScenario, draws: Draws) -> dict[str, Nav
 def error_statistics(
     scenario: LandingScenario, run: NavigationRun, draws: Draws
 ) -> dict[str, np.ndarray]:
-    """Per-run error statistics after the settle step (seed table 3).
+    """Per-run error statistics after the settle step (Li et al. 2024, table 3).
 
     Returns
     -------
     dict
         For ``position`` (m), ``velocity`` (m/s) and ``attitude`` (deg): ``<name>_std_axes``
-        ``(B, 3)`` the standard deviation over time of each axis error (the seed's
+        ``(B, 3)`` the standard deviation over time of each axis error (Li et al.'s
         statistic), ``<name>_std`` ``(B,)`` their root sum of squares, and ``<name>_rms``
         ``(B,)`` the root mean square of the error norm; ``images`` ``(B,)``.
     """

@@ -1,6 +1,6 @@
 """Monocular attitude, rate and inertia estimation of a tumbling non-cooperative target.
 
-The extended Kalman filter of seed 000 (Deng et al. 2024, eqs. 24–36). The only measurement
+The extended Kalman filter of Deng et al. 2024 (eqs. 24–36). The only measurement
 is the attitude of the target relative to the first camera frame, a quaternion obtained from
 image sequences (``filters.epipolar``); the filter estimates that attitude, the body rates
 and the normalised inertia tensor.
@@ -12,8 +12,8 @@ Nominal state ``x = [q (4), ω (3), p]`` with ``q`` the attitude relative to the
 body frame (rad/s) and ``p`` the inertia parameters:
 
 * form ``"L"``: ``p = l = [Lxx, Lyy, Lxy, Lxz, Lyz]``, the free entries of ``L = J/Jzz``
-  (seed 000 eq. 15; 11 error states);
-* form ``"k"``: ``p = k = [k1, k2]``, the tanh principal-axis form of seed 004 (8 error
+  (Deng et al. 2024, eq. 15; 11 error states);
+* form ``"k"``: ``p = k = [k1, k2]``, the tanh principal-axis form of Feng et al. (8 error
   states), for a reference frame aligned with the principal axes.
 
 The error state is ``δx = [δq_v, δω, δp]`` with the multiplicative attitude error
@@ -151,7 +151,7 @@ def inertia_form(name: str | InertiaForm) -> InertiaForm:
 
 
 def state_derivative(form: str | InertiaForm = "L") -> Callable[[Any], Any]:
-    """``f(x)`` of the nominal state ``x = [q, ω, p]`` (seed 000 eq. 17).
+    """``f(x)`` of the nominal state ``x = [q, ω, p]`` (Deng et al. 2024, eq. 17).
 
     ``q̇ = ½ Ω(ω) q``, ``ω̇ = −L⁻¹ [ω×] L ω``, ``ṗ = 0``. Works on numpy arrays and torch
     tensors with leading batch dimensions, so the same function drives the EKF, the truth
@@ -208,7 +208,7 @@ class FilterHistory:
 
 
 class MonocularEKF:
-    """Multiplicative EKF on ``[q, ω, inertia]`` with quaternion measurements (seed 000).
+    """Multiplicative EKF on ``[q, ω, inertia]`` with quaternion measurements (Deng et al. 2024).
 
     Parameters
     ----------
@@ -368,7 +368,7 @@ def reference_frame_truth(
     """Express a simulated truth in the frame the monocular filter estimates.
 
     The filter's body frame ``B'`` is the body-fixed frame that coincides with the camera
-    (reference) frame at the first epoch (seed 000 sec. 1: ``R₁ = I``). With the truth body
+    (reference) frame at the first epoch (Deng et al. 2024, sec. 1: ``R₁ = I``). With the truth body
     frame ``B`` and ``v_B = A(q0) v_B'``: ``q'(t) = q0⁻¹ ⊗ q(t)``, ``ω' = A(q0)ᵀ ω`` and
     ``J' = A(q0)ᵀ J A(q0)``. With ``q0 = [0, 0, 0, 1]`` nothing changes.
 
@@ -461,7 +461,7 @@ def observability_at(
     rtol: float = 1e-9,
     patience: int = 2,
 ) -> RankTest:
-    """Lie-derivative rank test of the monocular system at a state (seed 000 eqs. 19–23).
+    """Lie-derivative rank test of the monocular system at a state (Deng et al. 2024, eqs. 19–23).
 
     Columns are scaled by ``[1, 1, 1, |ω|, |ω|, |ω|, 1, …]`` (half-angle, rad/s and
     dimensionless inertia parameters compared on the scale of the motion).

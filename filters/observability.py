@@ -5,7 +5,7 @@ Generic over the system: every function takes the dynamics ``f(x)`` (or a discre
 observation planner and the stereo / relative-navigation filters share one implementation.
 Derivatives come from ``torch.func`` automatic differentiation, never finite differences.
 
-Rank test (Hermann & Krener 1977; seed 000 eqs. 19–23)
+Rank test (Hermann & Krener 1977; Deng et al. 2024, eqs. 19–23)
 -----------------------------------------------------
 ``L⁰h = h``, ``Lᵏh = (∂Lᵏ⁻¹h/∂x) f`` and the observability matrix
 ``Q_k = [dL⁰h; dL¹h; …; dLᵏh]``. The system is locally weakly observable at ``x`` when
@@ -90,7 +90,7 @@ def _stacked_lie(f: Function, h: Function, order: int) -> Function:
 
 
 def lie_derivatives(f: Function, h: Function, x: torch.Tensor, order: int) -> torch.Tensor:
-    """Lie derivatives ``Lᵏ_f h(x)`` for ``k = 0 … order`` (seed 000 eq. 19).
+    """Lie derivatives ``Lᵏ_f h(x)`` for ``k = 0 … order`` (Deng et al. 2024, eq. 19).
 
     Parameters
     ----------
@@ -120,7 +120,7 @@ def observability_matrix(
     order: int,
     chart: Chart | None = None,
 ) -> torch.Tensor:
-    """The matrix ``Q_k = [dL⁰h; …; dLᵏh]`` (seed 000 eq. 20), optionally in a chart.
+    """The matrix ``Q_k = [dL⁰h; …; dLᵏh]`` (Deng et al. 2024, eq. 20), optionally in a chart.
 
     Parameters
     ----------
@@ -301,7 +301,7 @@ def observability_rank(
     rtol: float = 1e-9,
     patience: int = 2,
 ) -> RankTest:
-    """Lie-derivative rank test with increasing order (seed 000 eqs. 20–23).
+    """Lie-derivative rank test with increasing order (Deng et al. 2024, eqs. 20–23).
 
     Orders ``k = 1, 2, …`` are tried until the rank is full, or it has not grown for
     ``patience`` consecutive orders, or ``max_order`` (default ``n − 1``) is reached.

@@ -1,7 +1,7 @@
 """Particle filter for attitude, rates, optional inertia and a discrete shape index.
 
 Each particle carries ``x = (q, ω[, k][, s])``: an attitude (inertial → body), body rates
-(rad/s), optionally the two tanh inertia parameters ``k`` (seed 004) and a shape index
+(rad/s), optionally the two tanh inertia parameters ``k`` (Feng et al.) and a shape index
 ``s`` (joint attitude–shape inversion over a library). All particles are propagated
 (torque-free RK4) and rendered in one batched torch call per shape, and the filter works
 in log-weights:

@@ -1,4 +1,4 @@
-"""Fisher-information observation planning (seed 001 sec. 2, eqs. 19–23).
+"""Fisher-information observation planning (Li et al. 2024, sec. 2, eqs. 19–23).
 
 After a filter update at step ``k`` the planner predicts ahead and picks the step ``k + s``,
 ``s ∈ [1, s_max]``, of the next observation; the estimator only propagates in between. The
@@ -10,7 +10,7 @@ light curve, given the model's callables.
 
 Two pluggable criteria:
 
-:class:`FisherTrace` (seed eq. 23)
+:class:`FisherTrace` (Li et al. 2024, eq. 23)
     ``s = argmin tr(F_{k+s}⁻¹)``: the Cramér–Rao bound (eqs. 21–22) of the observation alone,
     on a block of states the observation measures (``F`` is singular on the full ``[r, ṙ]``
     state because an image carries no velocity information).
@@ -76,8 +76,8 @@ class PlanningModel(Protocol):
         Transition matrix ``Φ`` and discrete process noise ``Q`` of the error state from
         ``step`` to ``step + 1`` at the mean ``x``, each ``(B, n, n)``.
     ``information(x, step)``
-        Fisher information ``F = Hᵀ R⁻¹ H`` ``(B, n, n)`` (seed eq. 20) of an observation taken
-        at ``step`` with the mean ``x``.
+        Fisher information ``F = Hᵀ R⁻¹ H`` ``(B, n, n)`` (Li et al. 2024, eq. 20) of an
+        observation taken at ``step`` with the mean ``x``.
 
     ``linearize`` and ``information`` also receive ``step`` as an int array ``(B,)`` (one step
     per batch element), so the planner evaluates a whole forecast in one call.
@@ -119,7 +119,9 @@ class FunctionModel:
 
 
 def fisher_information(h: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Fisher information ``F = Hᵀ R⁻¹ H`` of a linearised Gaussian measurement (seed eq. 20).
+    """Fisher information ``F = Hᵀ R⁻¹ H`` of a linearised Gaussian measurement.
+
+    Li et al. 2024, eq. 20.
 
     Parameters
     ----------
@@ -249,7 +251,7 @@ def _propagate(p: np.ndarray, phi: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def forecast(model: PlanningModel, x: Any, p: np.ndarray, step: int, length: int) -> Forecast:
-    """Predict ``length`` steps ahead of ``step`` (seed eqs. 9 and 13, no updates).
+    """Predict ``length`` steps ahead of ``step`` (Li et al. 2024, eqs. 9 and 13, no updates).
 
     The means are propagated one step at a time; ``Φ``, ``Q`` and ``F`` of all predicted
     steps are then evaluated in one batched call each.
@@ -307,7 +309,7 @@ def _block(f: np.ndarray, indices: Sequence[int] | None) -> np.ndarray:
 
 @dataclass(frozen=True)
 class FisherTrace:
-    """The seed's criterion ``min tr(F_{k+s}⁻¹)`` (eq. 23).
+    """Li et al.'s criterion ``min tr(F_{k+s}⁻¹)`` (eq. 23).
 
     Parameters
     ----------
@@ -323,7 +325,7 @@ class FisherTrace:
     tolerance: float = 1e-12
 
     def lookahead(self, s_max: int, steps_left: int) -> int:
-        """The seed predicts ``s_max`` steps ahead."""
+        """Li et al. predict ``s_max`` steps ahead."""
         return min(s_max, steps_left)
 
     def costs(self, forecast: Forecast, s_max: int, remaining: np.ndarray | None) -> np.ndarray:
@@ -421,7 +423,7 @@ def _base_schedule(first: int, length: int, budget: int, s_max: int, settle: int
 
 @dataclass(frozen=True)
 class ObservationPlanner:
-    """Choose the next observation step (seed fig. 2) with a pluggable criterion.
+    """Choose the next observation step (Li et al. 2024, fig. 2) with a pluggable criterion.
 
     Parameters
     ----------
@@ -889,7 +891,7 @@ def select_keyframes(
 
 @dataclass(frozen=True)
 class MonocularKeyframeModel:
-    """The monocular EKF of seed 000 (:class:`filters.monocular.MonocularEKF`) as a
+    """The monocular EKF of Deng et al. 2024 (:class:`filters.monocular.MonocularEKF`) as a
     :class:`PlanningModel` over a sequence of frames.
 
     Means are the EKF's nominal states ``[q, ω, p]``; step ``k`` is frame ``times[k]``. The

@@ -1,4 +1,4 @@
-"""Stereo-vision relative state and inertia estimation of a tumbling target (seed 004).
+"""Stereo-vision relative state and inertia estimation of a tumbling target (Feng et al.).
 
 A chaser flies a circular orbit with its camera frame ``C`` fixed in the Hill frame ``H`` of
 :mod:`filters.hill` (``v_C = M v_H``, ``M`` the camera mounting). A rectified stereo pair
@@ -8,33 +8,33 @@ tracks ``N`` points ``s_i`` fixed in the target's principal-axis body frame ``T`
 Model
 -----
 * Relative attitude ``q = q_TC`` (``v_T = A(q) v_C``) with the relative kinematics
-  ``q̇ = ½ Ω(ω − A(q) ω_C) q`` (seed 004 eq. 5), ``ω`` the target's inertial rate in ``T``
+  ``q̇ = ½ Ω(ω − A(q) ω_C) q`` (Feng et al., eq. 5), ``ω`` the target's inertial rate in ``T``
   and ``ω_C = M [0, 0, n]`` the rate of the LVLH-fixed camera frame.
 * Torque-free Euler equations in the tanh inertia form ``k = [k1, k2]`` of the attitude core,
   ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy] + w``, ``p = [−tanh k2, tanh k1, tanh(k2 − k1)]``
-  (seed 004 eqs. 16–20). The disturbance ``w = J⁻¹ τ`` is white angular-acceleration noise
+  (Feng et al., eqs. 16–20). The disturbance ``w = J⁻¹ τ`` is white angular-acceleration noise
   of spectral density ``q_ω`` (rad²/s³); only inertia *ratios* are observable without
   torques, so it is specified per unit inertia.
 * Centre-of-mass position ``ρ`` and velocity ``ρ̇`` in the Hill frame under the
   Clohessy–Wiltshire equations with white acceleration noise ``q_a`` (m²/s³).
 * Feature ``i`` in the camera frame ``p_i = M ρ + A(q)ᵀ s_i`` and the four image coordinates
   ``[u_L, v_L, u_R, v_R] = [f x/z + u0, f y/z + v0, f (x − b)/z + u0, f y/z + v0]``
-  (seed 004 eqs. 21–22) with white noise of ``f σ_θ`` pixels, ``σ_θ`` the angular noise.
+  (Feng et al., eqs. 21–22) with white noise of ``f σ_θ`` pixels, ``σ_θ`` the angular noise.
 
 The feature positions ``s_i`` are **known** to the filter (the paper's table 2 lists them);
-they define the body frame, so the state is the seed's ``[δθ, ω, k, ρ, ρ̇]`` (14 errors).
+they define the body frame, so the state is the paper's ``[δθ, ω, k, ρ, ρ̇]`` (14 errors).
 
 Filter
 ------
 Multiplicative EKF: the attitude error is ``δq = q ⊗ q̂⁻¹ ≈ [δθ/2, 1]`` and the linearised
-error dynamics (seed 004 eqs. 26–36) are
+error dynamics (Feng et al., eqs. 26–36) are
 
 ``δθ̇ = −[ω̂×] δθ + δω``  (the chaser-rate terms cancel),
 ``δω̇ = M(ω̂, k̂) δω + N(ω̂, k̂) δk + w``,  ``δk̇ = 0``,
 ``[δρ̇; δρ̈] = A_CW [δρ; δρ̇] + [0; a]``,
 
 with ``M = ∂ω̇/∂ω`` and ``N = ∂ω̇/∂k`` from the attitude core. The measurement Jacobian is
-``∂p_i/∂δθ = −Âᵀ [s_i×]``, ``∂p_i/∂ρ = M`` times the projection Jacobian (seed 004 eq. 38).
+``∂p_i/∂δθ = −Âᵀ [s_i×]``, ``∂p_i/∂ρ = M`` times the projection Jacobian (Feng et al., eq. 38).
 Covariance updates use the Joseph form (:mod:`filters.kalman`). :class:`StereoEKF` runs a
 *batch* of independent filters at once (leading array dimensions), which is how the Monte
 Carlo study is vectorised.
@@ -90,7 +90,7 @@ class StereoCamera:
     """A rectified stereo pair: two identical pinhole cameras ``baseline`` metres apart.
 
     The left camera is at the origin of the camera frame, the right one at
-    ``[baseline, 0, 0]`` with the same orientation (seed 004 fig. 2).
+    ``[baseline, 0, 0]`` with the same orientation (Feng et al., fig. 2).
 
     Parameters
     ----------
@@ -210,7 +210,7 @@ def relative_attitude_derivative(
 def rotational_error_matrix(omega: Any, k: Any) -> np.ndarray:
     """The 8×8 error-dynamics matrix of ``[δθ, δω, δk]``.
 
-    ``[[−[ω×], I, 0], [0, ∂ω̇/∂ω, ∂ω̇/∂k], [0, 0, 0]]`` (seed 004 eq. 36), with the two
+    ``[[−[ω×], I, 0], [0, ∂ω̇/∂ω, ∂ω̇/∂k], [0, 0, 0]]`` (Feng et al., eq. 36), with the two
     Jacobians from :func:`filters.attitude.euler_rate_jacobian` and
     :func:`filters.attitude.euler_rate_jacobian_tanh`.
 

@@ -1,11 +1,11 @@
-"""Monte Carlo study of the stereo relative-state and inertia EKF (seed 004, tables 4–7).
+"""Monte Carlo study of the stereo relative-state and inertia EKF (Feng et al., tables 4–7).
 
 One call simulates ``runs`` independent truths and filters *at once* (every array has a
 leading run dimension): the target's relative attitude and rate with random disturbance
 torques (RK4 sub-steps), the centre-of-mass motion with random accelerations (exact CW
 discretisation), noisy stereo images, and the batched :class:`filters.stereo.StereoEKF`.
 
-Figures of merit (seed 004 eqs. 40–41), over the epochs of the final ``window``:
+Figures of merit (Feng et al., eqs. 40–41), over the epochs of the final ``window``:
 
 ``RTMSE = √( (1 / (R T)) Σ_runs Σ_t |e|² )``
 

@@ -161,7 +161,7 @@ def torque_free_dynamics(
         Largest RK4 step (s).
     tanh_index : (int, int), optional
         Positions of ``k1, k2`` in the parameter vector ``θ``: then every sigma point has
-        its own inertia ``J = P diag(J(k)) Pᵀ`` (seed 004's tanh form, always physical).
+        its own inertia ``J = P diag(J(k)) Pᵀ`` (the tanh form of Feng et al., always physical).
     principal_axes : (3, 3) array, optional
         Columns = principal axes in the body frame (``P`` above); identity by default.
 

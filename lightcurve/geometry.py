@@ -66,7 +66,7 @@ def phase_angle(sun: Any, observer: Any) -> Any:
 
 
 def phase_angle_bisector(sun: Any, observer: Any) -> Any:
-    """Unit phase-angle bisector ``h = (ŝ + ô)/|ŝ + ô|`` (seed 002 sec. 2.2).
+    """Unit phase-angle bisector ``h = (ŝ + ô)/|ŝ + ô|`` (Gou et al. 2016, sec. 2.2).
 
     A flat facet produces a specular glint when its normal is along ``h``.
 

@@ -1,6 +1,6 @@
 """Seeded simulated scenarios and Monte Carlo studies of the inversion methods.
 
-The acceptance studies of ``benchmarks/inversion.py`` and their reduced versions in the
+The accuracy studies of ``benchmarks/inversion.py`` and their reduced versions in the
 tests both call these functions, so the test runs exactly the benchmark's code with fewer
 runs and shorter arcs.
 
@@ -194,7 +194,7 @@ def ukf_study(
     first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
-    """Acceptance 1: the UKF on a known shape from a perturbed prior.
+    """UKF study: the UKF on a known shape from a perturbed prior.
 
     Returns
     -------
@@ -266,7 +266,7 @@ def mmae_study(
     first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
-    """Acceptance 2: MMAE over a bank of library shapes.
+    """MMAE study: the MMAE over a bank of library shapes.
 
     Run ``i`` takes its truth from ``truths[i % len(truths)]`` (default: the bank itself,
     each shape in turn). With truths inside the bank the study reports how often the true
@@ -344,7 +344,7 @@ def pf_study(
     first: int = 0,
     **options: Any,
 ) -> dict[str, Any]:
-    """Acceptance 3: the PF from a uniform attitude prior and ``|ω| ≤ omega_max``.
+    """Particle-filter study: the PF from a uniform attitude prior and ``|ω| ≤ omega_max``.
 
     Reports how often the heaviest mode is within ``attitude_limit_deg`` of the truth
     (modulo the shape's symmetry), how often some reported mode is (its attitude or a

@@ -10,7 +10,7 @@ Dark epochs and the faint floor
 -------------------------------
 A facet model can be dark (no lit facet visible), where the magnitude is infinite. Filters
 need finite predictions, so the model adds a floor flux ``F_floor`` before taking the
-logarithm (seed 002, sec. 2.3, ``M = −26.74 − 2.5 log10 I``):
+logarithm (Gou et al. 2016, sec. 2.3, ``M = −26.74 − 2.5 log10 I``):
 
 ``m = −26.74 − 2.5 log10(F_obs/F_sun + F_floor)``,
 

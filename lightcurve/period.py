@@ -1,6 +1,6 @@
 """Rotation-period search: multi-harmonic Fourier periodogram, aliases, sidereal correction.
 
-Seed 002 sec. 2.1 (phase-angle methods): the light curve's periodic content gives the
+Gou et al. 2016, sec. 2.1 (phase-angle methods): the light curve's periodic content gives the
 rotation period. Each light curve ``c`` (one night, its own zero point) is modelled as ::
 
     m(t) = m_c + Σ_{k=1..K} [a_k cos(k ψ(t)) + b_k sin(k ψ(t))],     ψ(t) = 2π f t

@@ -1,7 +1,7 @@
 """Photometric observation scheduling: which epochs of a light curve carry attitude information.
 
-The observation planner of :mod:`filters.planner` (seed 001) applied to the light curve of a
-tumbling object: :class:`PhotometricPlanningModel` is a :class:`~filters.planner.PlanningModel`
+The observation planner of :mod:`filters.planner` (Li et al. 2024) applied to the light curve
+of a tumbling object: :class:`PhotometricPlanningModel` is a :class:`~filters.planner.PlanningModel`
 whose observation is one magnitude at a candidate epoch of a geometry table and whose error
 state is the attitude-error + rate state of the attitude core's EKFs,
 
@@ -11,13 +11,14 @@ estimated too),
 with the multiplicative error ``q = δq ⊗ q̂``, ``δq ≈ [δq_v, 1]`` (half the small body-frame
 rotation, :mod:`filters.attitude.jacobians`).
 
-Measurement (seed 002 sec. 2.3, DESIGN.md): ``m_k = −26.74 − 2.5 log10 I(A(q_k) ŝ_k, A(q_k) ô_k)``
-rendered by :class:`~lightcurve.render.Renderer`. Its row Jacobian
-``h_k = ∂m_k/∂δx = [∂m_k/∂δq_v, 0, 0]`` is taken by torch autograd through the renderer (a
-magnitude depends on the attitude at its epoch only; the rates enter through the dynamics).
-The Fisher information of the epoch is ``F_k = h_kᵀ h_k / σ_k²`` (seed 001 eq. 20), a rank-one
-matrix: one magnitude never bounds the attitude alone, so the seed's ``min tr F⁻¹`` does not
-apply and a budget of epochs is chosen for the smallest final attitude covariance
+Measurement (Gou et al. 2016, sec. 2.3; ``docs/rendering.md``):
+``m_k = −26.74 − 2.5 log10 I(A(q_k) ŝ_k, A(q_k) ô_k)`` rendered by
+:class:`~lightcurve.render.Renderer`. Its row Jacobian ``h_k = ∂m_k/∂δx = [∂m_k/∂δq_v, 0, 0]``
+is taken by torch autograd through the renderer (a magnitude depends on the attitude at its
+epoch only; the rates enter through the dynamics). The Fisher information of the epoch is
+``F_k = h_kᵀ h_k / σ_k²`` (Li et al. 2024, eq. 20), a rank-one matrix: one magnitude never
+bounds the attitude alone, so Li et al.'s ``min tr F⁻¹`` does not apply and a budget of
+epochs is chosen for the smallest final attitude covariance
 (:func:`~filters.planner.greedy_schedule` with an exchange pass, via
 :func:`~filters.planner.plan_final_covariance`; the sequential
 :class:`~filters.planner.PosteriorRollout` on request).

@@ -4,8 +4,8 @@ Without external torques only the *shape* of the inertia tensor is observable, s
 estimate a scale-free parameterisation:
 
 * The normalised tensor ``L = J / Jzz`` with the five free entries
-  ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` (seed 000, state entries 7–11).
-* The principal-axis *tanh* form ``k = [k1, k2] ∈ ℝ²`` (seed 004):
+  ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` (Deng et al. 2024, state entries 7–11).
+* The principal-axis *tanh* form ``k = [k1, k2] ∈ ℝ²`` (Feng et al.):
   ``J ∝ diag(1 + e^{2 k2}, 1 + e^{2 k1}, e^{2 k1} + e^{2 k2})``, for which the ratios
   ``px = (Jyy − Jzz)/Jxx = −tanh k2``, ``py = (Jzz − Jxx)/Jyy = tanh k1`` and
   ``pz = (Jxx − Jyy)/Jzz = tanh(k2 − k1)``. Every ``k`` is a physical inertia and every
@@ -110,7 +110,7 @@ def principal_axes(inertia: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def normalized_from_inertia(inertia: Any) -> Any:
-    """Free entries ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` of ``L = J / Jzz`` (seed 000).
+    """Free entries ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` of ``L = J / Jzz`` (Deng et al. 2024).
 
     Parameters
     ----------
@@ -154,7 +154,7 @@ def inertia_from_normalized(l: Any) -> Any:
 
 
 def inertia_ratios(inertia: Any) -> Any:
-    """Ratios ``p = [(Jyy − Jzz)/Jxx, (Jzz − Jxx)/Jyy, (Jxx − Jyy)/Jzz]`` (seed 004).
+    """Ratios ``p = [(Jyy − Jzz)/Jxx, (Jzz − Jxx)/Jyy, (Jxx − Jyy)/Jzz]`` (Feng et al.).
 
     They satisfy ``px + py + pz + px py pz = 0`` and ``|p| ≤ 1`` for a physical body.
 
@@ -175,7 +175,7 @@ def inertia_ratios(inertia: Any) -> Any:
 
 
 def ratios_from_tanh(k: Any) -> Any:
-    """Inertia ratios ``[−tanh k2, tanh k1, tanh(k2 − k1)]`` of the tanh form (seed 004).
+    """Inertia ratios ``[−tanh k2, tanh k1, tanh(k2 − k1)]`` of the tanh form (Feng et al.).
 
     Parameters
     ----------

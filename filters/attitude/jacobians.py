@@ -1,9 +1,9 @@
 """Analytic Jacobians of the attitude dynamics for extended Kalman filters.
 
-The error state of the seed-000 EKF is ``δx = [δq_v, δω, δl]`` (11 entries) with the
-multiplicative attitude error ``δq = q ⊗ q̂⁻¹`` (vector part, half the small rotation angle),
-``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` the free entries of ``L = J/Jzz``. Its linearised dynamics
-are ``δẋ = C δx`` with (seed 000 eqs. 27–31)
+The error state of the monocular EKF (Deng et al. 2024) is ``δx = [δq_v, δω, δl]``
+(11 entries) with the multiplicative attitude error ``δq = q ⊗ q̂⁻¹`` (vector part, half the
+small rotation angle), ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` the free entries of ``L = J/Jzz``.
+Its linearised dynamics are ``δẋ = C δx`` with (Deng et al. 2024, eqs. 27–31)
 
 ``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]``,
 ``M = −∂(L⁻¹[ω×]Lω)/∂ω``, ``N = −∂(L⁻¹[ω×]Lω)/∂l``.
@@ -42,7 +42,7 @@ _BASIS[4, 1, 2] = _BASIS[4, 2, 1] = 1.0
 
 
 def euler_rate_jacobian(omega: Any, inertia: Any) -> Any:
-    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×]J)`` of the torque-free Euler equations (``M`` of seed 000).
+    """``∂ω̇/∂ω = J⁻¹([Jω×] − [ω×]J)`` of the torque-free Euler equations (Deng et al.'s ``M``).
 
     Parameters
     ----------
@@ -60,7 +60,7 @@ def euler_rate_jacobian(omega: Any, inertia: Any) -> Any:
 
 
 def euler_rate_jacobian_normalized(omega: Any, l: Any) -> Any:
-    """``N = ∂ω̇/∂l`` for ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` (seed 000 eq. 30).
+    """``N = ∂ω̇/∂l`` for ``l = [Lxx, Lyy, Lxy, Lxz, Lyz]`` (Deng et al. 2024, eq. 30).
 
     Parameters
     ----------
@@ -84,7 +84,7 @@ def euler_rate_jacobian_normalized(omega: Any, l: Any) -> Any:
 
 
 def euler_rate_jacobian_tanh(omega: Any, k: Any) -> Any:
-    """``∂ω̇/∂k`` for the principal-axis tanh inertia form (seed 004).
+    """``∂ω̇/∂k`` for the principal-axis tanh inertia form (Feng et al.).
 
     With ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]``, ``px = −tanh k2``, ``py = tanh k1``,
     ``pz = tanh(k2 − k1)``.
@@ -117,7 +117,7 @@ def euler_rate_jacobian_tanh(omega: Any, k: Any) -> Any:
 
 
 def error_state_matrix(omega: Any, params: Any, form: str = "L") -> Any:
-    """The matrix ``C`` of the error-state dynamics ``δẋ = C δx`` (seed 000 eqs. 27–33).
+    """The matrix ``C`` of the error-state dynamics ``δẋ = C δx`` (Deng et al. 2024, eqs. 27–33).
 
     ``C = [[−[ω×], ½ I₃, 0], [0, M, N], [0, 0, 0]]`` with ``M = ∂ω̇/∂ω`` and
     ``N = ∂ω̇/∂p`` for the inertia parameters ``p`` of the chosen form.
@@ -127,8 +127,8 @@ def error_state_matrix(omega: Any, params: Any, form: str = "L") -> Any:
     omega : (..., 3) array
         Estimated body rates (rad/s).
     params : (..., 5) or (..., 2) array
-        ``[Lxx, Lyy, Lxy, Lxz, Lyz]`` (form ``"L"``, seed 000) or ``[k1, k2]`` (form ``"k"``,
-        the principal-axis tanh form of seed 004).
+        ``[Lxx, Lyy, Lxy, Lxz, Lyz]`` (form ``"L"``, Deng et al. 2024) or ``[k1, k2]``
+        (form ``"k"``, the principal-axis tanh form of Feng et al.).
     form : {"L", "k"}
 
     Returns
@@ -196,7 +196,7 @@ def state_jacobian(state: Any, inertia: Any) -> Any:
 
 
 def transition_matrix(matrix: Any, dt: float, terms: int = 12) -> Any:
-    """Discrete state-transition matrix ``Φ = exp(C Δt)`` (seed 000 eq. 32, exact form).
+    """Discrete state-transition matrix ``Φ = exp(C Δt)`` (Deng et al. 2024, eq. 32, exact form).
 
     numpy: scaling and squaring of the Taylor series, batched — the argument is halved until
     its 1-norm is at most ½, ``terms`` terms are summed (truncation ≈ 2⁻¹³/13! ≈ 1e-14

@@ -1,10 +1,10 @@
 """Attitude kinematics and torque-free rigid-body dynamics.
 
 * Kinematics ``q̇ = ½ Ω(ω) q`` with ``ω`` the body rate in the body frame (rad/s) and
-  ``Ω(ω) = [[−[ω×], ω], [−ωᵀ, 0]]`` (seed 000 eq. 11).
-* Euler's equations ``J ω̇ = τ − ω × J ω`` with ``J`` in the body frame (seed 000 eq. 12);
-  with the normalised tensor ``L = J / Jzz`` this is ``ω̇ = −L⁻¹ [ω×] L ω`` (seed 000 eq. 14),
-  and in principal axes with the ratios ``p`` (seed 004) ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]``.
+  ``Ω(ω) = [[−[ω×], ω], [−ωᵀ, 0]]`` (Deng et al. 2024, eq. 11).
+* Euler's equations ``J ω̇ = τ − ω × J ω`` with ``J`` in the body frame (Deng et al. 2024,
+  eq. 12); with the normalised tensor ``L = J / Jzz`` this is ``ω̇ = −L⁻¹ [ω×] L ω`` (eq. 14),
+  and in principal axes with the ratios ``p`` (Feng et al.) ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]``.
 
 The full state used for propagation is ``x = [q1, q2, q3, q4, ωx, ωy, ωz]``.
 """
@@ -51,7 +51,7 @@ def cross_matrix(v: Any) -> Any:
 
 
 def omega_matrix(omega: Any) -> Any:
-    """The 4×4 matrix ``Ω(ω)`` of ``q̇ = ½ Ω(ω) q`` (seed 000 eq. 11).
+    """The 4×4 matrix ``Ω(ω)`` of ``q̇ = ½ Ω(ω) q`` (Deng et al. 2024, eq. 11).
 
     Parameters
     ----------
@@ -130,7 +130,7 @@ def euler_rate(omega: Any, inertia: Any, torque: Any = None) -> Any:
         Body rates (rad/s).
     inertia : (..., 3, 3) array
         Inertia tensor in the body frame (any consistent unit; only ratios matter without
-        torque). A normalised tensor ``L = J/Jzz`` gives seed 000 eq. 14.
+        torque). A normalised tensor ``L = J/Jzz`` gives Deng et al. 2024, eq. 14.
     torque : (..., 3) array, optional
         External torque in the body frame, in the units of ``inertia`` times rad/s².
 
@@ -145,7 +145,7 @@ def euler_rate(omega: Any, inertia: Any, torque: Any = None) -> Any:
 
 
 def euler_rate_principal(omega: Any, ratios: Any) -> Any:
-    """Torque-free ``ω̇`` in principal axes from the inertia ratios (seed 004).
+    """Torque-free ``ω̇`` in principal axes from the inertia ratios (Feng et al.).
 
     ``ω̇ = [px ωy ωz, py ωz ωx, pz ωx ωy]`` with ``px = (Jyy − Jzz)/Jxx``,
     ``py = (Jzz − Jxx)/Jyy``, ``pz = (Jxx − Jyy)/Jzz``.

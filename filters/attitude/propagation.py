@@ -269,7 +269,7 @@ class PrincipalInertia(NamedTuple):
 
     In principal axes Euler's equations need no matrix: ``ω̇_P = p ⊙ (ω₂ω₃, ω₃ω₁, ω₁ω₂)``
     with the inertia ratios ``p = [(J₂ − J₃)/J₁, (J₃ − J₁)/J₂, (J₁ − J₂)/J₃]``
-    (:func:`~filters.attitude.inertia_ratios`, seed 004). The propagators below turn
+    (:func:`~filters.attitude.inertia_ratios`, Feng et al.). The propagators below turn
     body-frame states into the principal frame once (``v_P = Pᵀ v_B``, ``q_P = r ⊗ q``
     with ``A(r) = Pᵀ``), integrate there and turn them back. RK4 commutes with a constant
     linear change of variables and the renormalisation with a rotation of ``q``, so this is
@@ -304,7 +304,7 @@ class PrincipalInertia(NamedTuple):
 
     @classmethod
     def from_tanh(cls, k: Any, axes: Any = None) -> PrincipalInertia:
-        """The tanh inertia parameters ``k (..., 2)`` (seed 004) about principal axes
+        """The tanh inertia parameters ``k (..., 2)`` (Feng et al.) about principal axes
         ``axes`` (identity by default): ratios ``[−tanh k₂, tanh k₁, tanh(k₂ − k₁)]``
         (:func:`~filters.attitude.ratios_from_tanh`)."""
         axes = np.eye(3) if axes is None else _numpy(axes)

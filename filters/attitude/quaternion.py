@@ -4,7 +4,7 @@ Conventions (``docs/conventions.md``):
 
 * ``q = [q1, q2, q3, q4]`` with ``q4`` the scalar part, unit norm.
 * The attitude matrix maps inertial vectors into the body frame, ``v_B = A(q) v_I``, with
-  ``A(q) = (q4² − |q_v|²) I + 2 q_v q_vᵀ − 2 q4 [q_v×]`` (seed 000 eq. 10; Shuster 1993).
+  ``A(q) = (q4² − |q_v|²) I + 2 q_v q_vᵀ − 2 q4 [q_v×]`` (Deng et al. 2024, eq. 10; Shuster 1993).
 * The product ``⊗`` composes like the matrices: ``A(p ⊗ q) = A(p) A(q)`` (Markley &
   Crassidis 2014, eq. 2.82).
 * ``scipy.spatial.transform.Rotation.from_quat(q).as_matrix()`` equals ``A(q).T``.
@@ -145,7 +145,7 @@ def quaternion_canonical(q: Any) -> Any:
 def attitude_matrix(q: Any) -> Any:
     """Attitude matrix ``A(q)`` mapping inertial vectors into the body frame.
 
-    ``A(q) = (q4² − |q_v|²) I + 2 q_v q_vᵀ − 2 q4 [q_v×]`` (seed 000 eq. 10). The input
+    ``A(q) = (q4² − |q_v|²) I + 2 q_v q_vᵀ − 2 q4 [q_v×]`` (Deng et al. 2024, eq. 10). The input
     need not be normalised exactly; it is used as given.
 
     Parameters
@@ -381,7 +381,7 @@ def quaternion_to_mrp(q: Any) -> Any:
 
 
 def euler321_to_quaternion(angles: Any) -> Any:
-    """Quaternion of 3-2-1 (yaw, pitch, roll) Euler angles (seed 002 eq. 2).
+    """Quaternion of 3-2-1 (yaw, pitch, roll) Euler angles (Gou et al. 2016, eq. 2).
 
     ``A = R1(φ) R2(θ) R3(ψ)``: first yaw ``ψ`` about z, then pitch ``θ`` about the new y,
     then roll ``φ`` about the new x.

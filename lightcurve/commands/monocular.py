@@ -1,4 +1,4 @@
-"""Monocular attitude, rate and inertia estimation of a tumbling target (seed 000).
+"""Monocular attitude, rate and inertia estimation of a tumbling target (Deng et al. 2024).
 
 ``lightcurve monocular SCENARIO.toml --out DIR [--runs N] [--seed S] [--measurements CSV]``
 simulates the scenario's truth, its relative-attitude measurements (noisy quaternions, or
@@ -35,7 +35,7 @@ from lightcurve.scenarios.monocular import (
 NAME = "monocular"
 
 
-HELP = "attitude, rate and inertia of a tumbling target from monocular images (seed 000)"
+HELP = "attitude, rate and inertia of a tumbling target from images (Deng et al. 2024)"
 
 
 ORDER = 60

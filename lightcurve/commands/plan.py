@@ -1,8 +1,8 @@
-"""Fisher-information observation planning for small-body landing navigation (seed 001).
+"""Fisher-information observation planning for small-body landing navigation (Li et al. 2024).
 
 Runs ``--runs`` seeded Monte Carlo descents of the scenario and navigates each with three
-image strategies on the same random draws: an image at every step, the seed's criterion
-``min tr(F⁻¹)`` and the improved posterior-covariance criterion at the seed's image budget.
+image strategies on the same random draws: an image at every step, Li et al.'s criterion
+``min tr(F⁻¹)`` and the improved posterior-covariance criterion at the same image budget.
 Writes ``OUT/summary.json``: per strategy the images used, the position, velocity and
 attitude error standard deviations after the settle time (Monte Carlo mean and spread) and
 the observation times; plus their ratios and the paper's table-3 numbers. The scenario file
@@ -25,7 +25,7 @@ from lightcurve.scenarios.landing import (
 NAME = "plan"
 
 
-HELP = "plan landmark images of a small-body landing by Fisher information (seed 001)"
+HELP = "plan landmark images of a small-body landing, Fisher information (Li et al. 2024)"
 
 
 ORDER = 64
@@ -49,9 +49,10 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_json(args.out / "summary.json", summary)
     comp = summary["comparison"]
     print(
-        f"{args.runs} runs: seed criterion used {comp['seed_images_fraction']:.1%} of the images, "
-        f"position std x{comp['seed_vs_every_step_position_std']:.2f} of every step; "
-        f"improved/seed position std {comp['improved_vs_seed_position_std']:.3f}; "
+        f"{args.runs} runs: Fisher-trace criterion used "
+        f"{comp['fisher_trace_images_fraction']:.1%} of the images, "
+        f"position std x{comp['fisher_trace_vs_every_step_position_std']:.2f} of every step; "
+        f"improved/Fisher-trace position std {comp['improved_vs_fisher_trace_position_std']:.3f}; "
         f"wrote {args.out / 'summary.json'}"
     )
     return 0

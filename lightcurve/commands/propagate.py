@@ -20,17 +20,17 @@ NAME = "propagate"
 HELP = "propagate a tumbling rigid body (torque-free) and print its state"
 ORDER = 90
 
-# Seed 000 scenario A (a nutating body) as the default demonstration.
-_SEED000_INERTIA = "0.85,1.37,1.0,0.13,0.17,-0.11"
+# The nutating body of Deng et al. 2024 (scenario A) as the default demonstration.
+_NUTATION_INERTIA = "0.85,1.37,1.0,0.13,0.17,-0.11"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--inertia",
         type=inertia_tensor,
-        default=inertia_tensor(_SEED000_INERTIA),
+        default=inertia_tensor(_NUTATION_INERTIA),
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
-        help="body-frame inertia (any unit; default: seed 000 scenario A)",
+        help="body-frame inertia (any unit; default: data/scenarios/nutation.toml)",
     )
     parser.add_argument(
         "--q0",

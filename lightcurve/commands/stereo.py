@@ -1,4 +1,4 @@
-"""Monte Carlo study of stereo relative-state and inertia estimation (seed 004).
+"""Monte Carlo study of stereo relative-state and inertia estimation (Feng et al.).
 
 Runs ``--runs`` seeded truth/filter pairs of the scenario (batched) and writes
 ``OUT/summary.json`` (RTMSE over the scenario's final window of attitude, rate, position,
@@ -24,7 +24,7 @@ from lightcurve.scenarios.stereo import (
 NAME = "stereo"
 
 
-HELP = "Monte Carlo of the stereo relative-state and inertia EKF (seed 004)"
+HELP = "Monte Carlo of the stereo relative-state and inertia EKF (Feng et al.)"
 
 
 ORDER = 62

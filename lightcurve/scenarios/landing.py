@@ -1,4 +1,4 @@
-"""Small-body landing scenarios for observation planning (seed 001): the scenario file, the
+"""Small-body landing scenarios for observation planning (Li et al. 2024): the scenario file, the
 Monte Carlo study of the three imaging strategies, and its summary.
 
 The ``lightcurve plan`` command is a thin layer over this module.
@@ -35,9 +35,9 @@ from filters.lander import (
 from lightcurve.scenarios import TomlTable, load_toml
 
 PAPER = {
-    "images_used": {"seed": 55, "every_step": 104},
-    "position_error_std_m": {"seed": 0.0082, "every_step": 0.0068},
-    "attitude_error_std_deg": {"seed": 0.23, "every_step": 0.1932},
+    "images_used": {"fisher_trace": 55, "every_step": 104},
+    "position_error_std_m": {"fisher_trace": 0.0082, "every_step": 0.0068},
+    "attitude_error_std_deg": {"fisher_trace": 0.23, "every_step": 0.1932},
 }
 
 
@@ -225,20 +225,20 @@ def summarize(study: Study) -> dict[str, Any]:
             (np.flatnonzero(run.taken[:, b]) * dt).tolist() for b in range(run.taken.shape[1])
         ]
         strategies[name] = entry
-    every, seed_s, improved = (study.statistics[n] for n in STRATEGIES)
+    every, trace, improved = (study.statistics[n] for n in STRATEGIES)
     comparison = {
-        "seed_images_fraction": float(seed_s["images"].mean() / every["images"].mean()),
-        "seed_vs_every_step_position_std": float(
-            seed_s["position_std"].mean() / every["position_std"].mean()
+        "fisher_trace_images_fraction": float(trace["images"].mean() / every["images"].mean()),
+        "fisher_trace_vs_every_step_position_std": float(
+            trace["position_std"].mean() / every["position_std"].mean()
         ),
-        "improved_vs_seed_position_std": float(
-            improved["position_std"].mean() / seed_s["position_std"].mean()
+        "improved_vs_fisher_trace_position_std": float(
+            improved["position_std"].mean() / trace["position_std"].mean()
         ),
-        "improved_vs_seed_position_rms": float(
-            improved["position_rms"].mean() / seed_s["position_rms"].mean()
+        "improved_vs_fisher_trace_position_rms": float(
+            improved["position_rms"].mean() / trace["position_rms"].mean()
         ),
         "improved_lower_std_fraction_of_runs": float(
-            np.mean(improved["position_std"] < seed_s["position_std"])
+            np.mean(improved["position_std"] < trace["position_std"])
         ),
     }
     return {

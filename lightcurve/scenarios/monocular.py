@@ -1,4 +1,4 @@
-"""Monocular attitude, rate and inertia scenarios (seed 000): scenario files, simulated
+"""Monocular attitude, rate and inertia scenarios (Deng et al. 2024): scenario files, simulated
 measurements (quaternions or pixel tracks), Monte Carlo studies, summaries and figures.
 
 The ``lightcurve monocular`` command is a thin layer over this module.
@@ -77,7 +77,7 @@ class PixelSetup:
 
 @dataclass(frozen=True)
 class Criteria:
-    """Success thresholds (acceptance of seed-000 scenario A) and the settling window."""
+    """Success thresholds for the nutating-body scenario (A) and the settling window."""
 
     attitude_deg: float = 0.5
     rate_fraction: float = 0.02
@@ -740,7 +740,7 @@ def write_figures(study: Study, out: Path, prefix: str = "") -> list[Path]:
         ax.set_ylabel(f"q{i + 1}")
     axes[0].legend(loc="upper right")
     axes[-1].set_xlabel("time (s)")
-    fig.suptitle("Relative attitude quaternion (cf. seed 000 fig. 3)")
+    fig.suptitle("Relative attitude quaternion (cf. Deng et al. 2024, fig. 3)")
     save(fig, "quaternion.png")
 
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
@@ -751,7 +751,7 @@ def write_figures(study: Study, out: Path, prefix: str = "") -> list[Path]:
         ax.set_ylabel(f"ω{'xyz'[i]} (°/s)")
     axes[0].legend(loc="upper right")
     axes[-1].set_xlabel("time (s)")
-    fig.suptitle("Body rates (cf. seed 000 fig. 4)")
+    fig.suptitle("Body rates (cf. Deng et al. 2024, fig. 4)")
     save(fig, "rates.png")
 
     m = form.size
@@ -768,7 +768,7 @@ def write_figures(study: Study, out: Path, prefix: str = "") -> list[Path]:
         ax.set_ylabel(form.parameter_names[i])
     np.atleast_1d(axes)[0].legend(loc="upper right", ncol=3)
     np.atleast_1d(axes)[-1].set_xlabel("time (s)")
-    fig.suptitle("Inertia parameters (cf. seed 000 figs. 5–6)")
+    fig.suptitle("Inertia parameters (cf. Deng et al. 2024, figs. 5–6)")
     save(fig, "inertia.png")
 
     if truth:

@@ -1,4 +1,4 @@
-"""Stereo relative-navigation scenario files (seed 004).
+"""Stereo relative-navigation scenario files (Feng et al.).
 
 A TOML file becomes a :class:`filters.stereo_montecarlo.StereoScenario`.
 

@@ -8,7 +8,7 @@ whose message starts with ``FILE: [table] field:``, which the CLI prints as one 
 
 Example
 -------
->>> root = load_toml("data/scenarios/seed000_nutation.toml")  # doctest: +SKIP
+>>> root = load_toml("data/scenarios/nutation.toml")  # doctest: +SKIP
 >>> truth = root.table("truth")  # doctest: +SKIP
 >>> omega = truth.array("omega0_deg_s", (3,))  # doctest: +SKIP
 >>> truth.check_unknown()  # doctest: +SKIP

@@ -1,4 +1,4 @@
-"""Acceptance 5 and the kernel interface: numpy vs torch, dtypes, autograd, broadcasting."""
+"""The kernel interface: numpy vs torch, dtypes, autograd, broadcasting."""
 
 import numpy as np
 import pytest

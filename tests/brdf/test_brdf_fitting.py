@@ -98,7 +98,7 @@ def _starlink(material):
 
 
 def test_starlink_solar_array_best_model_beats_lambert_widely():
-    # Acceptance 6 (full report: python -m benchmarks.starlink_brdf): Lambert 0.89 dex RMS,
+    # Full report by python -m benchmarks.starlink_brdf: Lambert 0.89 dex RMS,
     # Cook–Torrance 0.40 dex (a factor 2.2).
     table = _starlink("solar_array")
     lambert = brdf.fit("lambert", table, starts=1)

@@ -1,4 +1,4 @@
-"""Acceptance 2 and 3: non-negativity, Helmholtz reciprocity and directional albedo ≤ 1."""
+"""Physical checks: non-negativity, Helmholtz reciprocity and directional albedo ≤ 1."""
 
 import math
 

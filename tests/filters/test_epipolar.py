@@ -165,7 +165,8 @@ def test_tracks_cull_back_faces_and_occluded_points(bennu_tracks):
 
 
 def test_pixels_give_relative_attitudes_within_0p2_deg(bennu_tracks):
-    """Acceptance 3 (per frame pair): 1024² camera, 0.1 px, hundreds of library-shape points."""
+    """Relative attitudes from pixels (per frame pair): 1024² camera, 0.1 px, hundreds of
+    library-shape points."""
     tracks, states = bennu_tracks
     seq = attitude_sequence(tracks, CAMERA, np.random.default_rng(0))
     assert not seq.failures

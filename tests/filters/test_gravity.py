@@ -1,5 +1,5 @@
 """Spherical-harmonic gravity: potential against an independent Legendre evaluation,
-acceleration against the numerical gradient (issue 9, acceptance 4), point-mass limit."""
+acceleration against the numerical gradient , point-mass limit."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def outside_points(count: int, seed: int) -> np.ndarray:
 
 
 def legendre_potential(field: SphericalHarmonicGravity, r: np.ndarray) -> float:
-    """Seed 001 eq. 3 evaluated term by term with scipy's associated Legendre functions."""
+    """Li et al. 2024, eq. 3 evaluated term by term with scipy's associated Legendre functions."""
     x, y, z = r
     rn = math.sqrt(x * x + y * y + z * z)
     lat, lon = math.asin(z / rn), math.atan2(y, x)

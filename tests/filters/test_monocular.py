@@ -1,4 +1,4 @@
-"""Monocular EKF of seed 000: Jacobians against autograd, filter algebra, scenarios A and B."""
+"""Monocular EKF (Deng et al. 2024): Jacobians against autograd, filter algebra, scenarios."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ rates = st.lists(st.floats(-0.3, 0.3), min_size=3, max_size=3)
 
 
 def _exact_error_rate(delta: torch.Tensor, omega_hat: torch.Tensor, p: torch.Tensor, form: str):
-    """Nonlinear ``d/dt [δq_v, δω, δp]`` for ``δq = q ⊗ q̂⁻¹`` (seed 000 eqs. 25–31 exact)."""
+    """Nonlinear ``d/dt [δq_v, δω, δp]`` for ``δq = q ⊗ q̂⁻¹`` (Deng et al. 2024, eqs. 25–31)."""
     spec = FORMS[form]
     dq = torch.cat([delta[:3], torch.sqrt(1 - delta[:3] @ delta[:3])[None]])
     omega = omega_hat + delta[3:6]
@@ -63,7 +63,7 @@ def _exact_error_rate(delta: torch.Tensor, omega_hat: torch.Tensor, p: torch.Ten
 @settings(max_examples=5, deadline=None)
 @given(omega=rates, seed=st.integers(0, 2**31))
 def test_error_state_matrix_matches_autograd(form, omega, seed):
-    """Acceptance 4: ``C`` (with ``M``, ``N``) equals the autograd Jacobian to 1e-9."""
+    """``C`` (with ``M``, ``N``) equals the autograd Jacobian to 1e-9."""
     rng = np.random.default_rng(seed)
     if form == "L":
         # A random physical inertia, normalised (Lzz = 1).
@@ -151,8 +151,8 @@ def _scenario(name: str, **changes):
 
 
 def test_scenario_a_converges_with_the_papers_setup():
-    """Acceptance 1, reduced: 4 seeded runs of 1600 s (the benchmark runs 50 of 2000 s)."""
-    sc = _scenario("seed000_nutation.toml", duration=1600.0)
+    """Nutating body, reduced: 4 seeded runs of 1600 s (the benchmark runs 50 of 2000 s)."""
+    sc = _scenario("nutation.toml", duration=1600.0)
     assert np.allclose(np.diag(sc.q), 1e-3) and np.allclose(np.diag(sc.r), 1e-3)
     study = run_study(sc, runs=4, seed=7)
     conv = convergence(study)
@@ -166,8 +166,8 @@ def test_scenario_a_converges_with_the_papers_setup():
 
 
 def test_scenario_b_inertia_does_not_converge():
-    """Acceptance 2 (filter side): in pure spin Lxx, Lyy, Lxz keep their prior and their σ grows."""
-    sc = _scenario("seed000_pure_spin.toml", duration=400.0)
+    """Pure spin (filter side): Lxx, Lyy, Lxz keep their prior and their σ grows."""
+    sc = _scenario("pure_spin.toml", duration=400.0)
     study = run_study(sc, runs=1, seed=3)
     l_true = normalized_from_inertia(sc.truth.inertia)
     sig = study.history.sigmas[:, 0, 6:]
@@ -182,7 +182,7 @@ def test_scenario_b_inertia_does_not_converge():
 
 def test_tanh_form_converges_for_a_principal_axis_body():
     """The k-form variant on a nutating body whose principal axes are the first camera frame."""
-    sc = _scenario("seed000_nutation.toml", duration=1500.0, inertia=np.diag([0.85, 1.37, 1.0]))
+    sc = _scenario("nutation.toml", duration=1500.0, inertia=np.diag([0.85, 1.37, 1.0]))
     k_true = tanh_from_inertia(np.diag([0.85, 1.37, 1.0]))
     n = 8
     sc = dataclasses.replace(

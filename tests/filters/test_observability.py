@@ -72,7 +72,7 @@ def test_a_chart_counts_the_rank_in_local_coordinates():
 
 
 def test_scenario_a_is_fully_observable_at_the_true_state():
-    """Acceptance 1: rank 11 (seed 000 eq. 21) with a clear singular-value gap."""
+    """Nutating body: rank 11 (Deng et al. 2024, eq. 21) with a clear singular-value gap."""
     x = np.r_[0, 0, 0, 1.0, np.radians([5.0, 2.3, 3.5]), normalized_from_inertia(J_A)]
     test = observability_at(x, "L", max_order=4)
     assert test.rank == 11 and test.full
@@ -82,7 +82,7 @@ def test_scenario_a_is_fully_observable_at_the_true_state():
 
 
 def test_scenario_b_loses_exactly_three_inertia_directions():
-    """Acceptance 2: rank 8 < 11 in pure spin (eq. 23); unobservable Lxx, Lyy, Lxz."""
+    """Pure spin: rank 8 < 11 (eq. 23); unobservable Lxx, Lyy, Lxz."""
     x = np.r_[0, 0, 0, 1.0, np.radians([0.0, 2.3, 0.0]), normalized_from_inertia(J_B)]
     test = observability_at(x, "L", max_order=5)
     assert test.rank == 8

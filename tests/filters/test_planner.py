@@ -1,4 +1,4 @@
-"""Observation planner: information algebra, the seed's criterion, the budgeted rollout and
+"""Observation planner: information algebra, Li et al.'s criterion, the budgeted rollout and
 keyframe selection on synthetic monocular (quaternion + pixel) data."""
 
 from __future__ import annotations
@@ -348,7 +348,7 @@ def test_keyframes_give_a_lower_final_attitude_covariance_than_uniform(tumbling_
     assert final_spaced < 0.95 * final_uniform
 
 
-# --- keyframes driving the monocular EKF (seed 000) ---------------------------------------
+# --- keyframes driving the monocular EKF (Deng et al. 2024) ---------------------------------------
 
 
 def test_monocular_keyframes_drive_the_real_ekf():

@@ -1,4 +1,4 @@
-"""Stereo relative-state and inertia EKF (seed 004): model, Jacobians and a seeded Monte Carlo."""
+"""Stereo relative-state and inertia EKF (Feng et al.): model, Jacobians, seeded Monte Carlo."""
 
 from __future__ import annotations
 

@@ -30,7 +30,8 @@ from filters.ukf import (
     unscented_moments,
 )
 
-INERTIA = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])  # seed 000
+# The nutating body of Deng et al. 2024.
+INERTIA = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 VECTORS = np.array([[1.0, 2.0, 3.0], [-2.0, 0.5, 1.0]]) / np.sqrt([[14.0], [5.25]])
 
 

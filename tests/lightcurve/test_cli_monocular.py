@@ -41,22 +41,22 @@ def short_copy(tmp_path: Path, name: str, duration: float) -> Path:
 
 
 def test_shipped_scenarios_are_the_papers():
-    a = load_monocular_scenario(SCENARIOS / "seed000_nutation.toml")
+    a = load_monocular_scenario(SCENARIOS / "nutation.toml")
     assert np.allclose(a.truth.inertia, [[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1]])
     assert np.allclose(np.degrees(a.truth.omega0), [5.0, 2.3, 3.5])
     assert np.allclose(a.x0[4:7], np.radians([0.5, 0.23, 0.35]))
     assert np.allclose(a.x0[7:], [0.7, 0.7, 0, 0, 0])
     assert np.allclose(a.q, 1e-3 * np.eye(11)) and np.allclose(a.r, 1e-3 * np.eye(3))
-    b = load_monocular_scenario(SCENARIOS / "seed000_pure_spin.toml")
+    b = load_monocular_scenario(SCENARIOS / "pure_spin.toml")
     assert np.allclose(b.truth.inertia, np.diag([0.85, 1.37, 1.0]))
     assert np.allclose(np.degrees(b.truth.omega0), [0.0, 2.3, 0.0])
     assert np.allclose(b.x0, a.x0) and np.allclose(b.q, a.q) and np.allclose(b.r, a.r)
-    p = load_monocular_scenario(SCENARIOS / "seed000_nutation_pixels.toml")
+    p = load_monocular_scenario(SCENARIOS / "nutation_pixels.toml")
     assert p.mode == "pixels" and p.pixels.camera.width == 1024 and p.pixels.pixel_sigma == 0.1
 
 
 def test_nutation_run_writes_the_summary_contract(tmp_path):
-    scenario = short_copy(tmp_path, "seed000_nutation.toml", 150.0)
+    scenario = short_copy(tmp_path, "nutation.toml", 150.0)
     out = tmp_path / "a"
     assert main(["monocular", str(scenario), "--out", str(out), "--runs", "3", "--seed", "4"]) == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -65,7 +65,7 @@ def test_nutation_run_writes_the_summary_contract(tmp_path):
     assert summary["observability_rank"] == 11
     assert len(summary["L"]) == len(summary["L_sigma"]) == len(summary["L_error"]) == 5
     assert summary["attitude_error_deg"] < 0.5
-    # 150 s is too short for the inertia (acceptance needs ~1500 s): it must not claim success.
+    # 150 s is too short for the inertia (success needs ~1500 s): it must not claim success.
     assert summary["success"] is False and summary["converged"] is False
     mc = summary["monte_carlo"]
     assert mc["runs"] == 3 and 0.0 <= mc["success_rate"] <= 1.0
@@ -78,7 +78,7 @@ def test_nutation_run_writes_the_summary_contract(tmp_path):
 
 
 def test_pure_spin_reports_weak_observability(tmp_path):
-    scenario = short_copy(tmp_path, "seed000_pure_spin.toml", 200.0)
+    scenario = short_copy(tmp_path, "pure_spin.toml", 200.0)
     out = tmp_path / "b"
     assert main(["monocular", str(scenario), "--out", str(out), "--no-plots"]) == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -98,7 +98,7 @@ def test_external_measurements_run_without_truth(tmp_path):
     frame.loc[10, ["q1", "q2", "q3", "q4"]] = np.nan  # a gap
     frame.to_csv(csv, index=False)
     out = tmp_path / "ext"
-    scenario = short_copy(tmp_path, "seed000_nutation.toml", 100.0)
+    scenario = short_copy(tmp_path, "nutation.toml", 100.0)
     assert main(["monocular", str(scenario), "--out", str(out), "--measurements", str(csv)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["measurement_mode"] == "external"
@@ -120,7 +120,7 @@ def test_external_measurements_run_without_truth(tmp_path):
     ],
 )
 def test_bad_scenarios_name_the_field(tmp_path, capsys, old, new, message):
-    text = (SCENARIOS / "seed000_nutation.toml").read_text()
+    text = (SCENARIOS / "nutation.toml").read_text()
     assert old in text
     path = tmp_path / "bad.toml"
     path.write_text(text.replace(old, new))
@@ -144,7 +144,7 @@ def test_bad_measurement_rows_name_line_and_column(tmp_path):
 
 
 def test_pixel_mode_runs_end_to_end(tmp_path):
-    scenario = short_copy(tmp_path, "seed000_nutation_pixels.toml", 30.0)
+    scenario = short_copy(tmp_path, "nutation_pixels.toml", 30.0)
     out = tmp_path / "pix"
     assert main(["monocular", str(scenario), "--out", str(out), "--no-plots"]) == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -155,7 +155,7 @@ def test_pixel_mode_runs_end_to_end(tmp_path):
 
 
 def test_unknown_library_shape_names_the_field(tmp_path, capsys):
-    text = (SCENARIOS / "seed000_nutation_pixels.toml").read_text()
+    text = (SCENARIOS / "nutation_pixels.toml").read_text()
     path = tmp_path / "shape.toml"
     path.write_text(text.replace('shape = "bennu"', 'shape = "benu"'))
     assert main(["monocular", str(path), "--out", str(tmp_path / "o")]) == 2

@@ -15,7 +15,7 @@ from lightcurve.cli import main
 from lightcurve.scenarios.landing import load_scenario
 
 EROS = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "eros_landing.toml"
-STRATEGIES = ("every_step", "seed", "improved")
+STRATEGIES = ("every_step", "fisher_trace", "improved")
 
 
 def edited(tmp_path: Path, *replacements: tuple[str, str]) -> Path:
@@ -74,12 +74,12 @@ def test_plan_writes_the_summary_contract(tmp_path, capsys):
         assert np.mean([len(t) for t in times]) == entry["images_used"]["mean"]
         assert entry["images_used"]["max"] <= 13
     assert summary["strategies"]["every_step"]["images_used"]["mean"] == 13
-    seed_used = summary["strategies"]["seed"]["images_used"]["mean"]
-    assert summary["strategies"]["improved"]["images_used"]["mean"] <= seed_used < 13
-    gaps = np.diff(summary["strategies"]["seed"]["observation_times_s"][0])
+    trace_used = summary["strategies"]["fisher_trace"]["images_used"]["mean"]
+    assert summary["strategies"]["improved"]["images_used"]["mean"] <= trace_used < 13
+    gaps = np.diff(summary["strategies"]["fisher_trace"]["observation_times_s"][0])
     assert gaps.max() <= summary["s_max"]
-    assert summary["comparison"]["seed_images_fraction"] == pytest.approx(seed_used / 13)
-    assert summary["paper"]["images_used"] == {"seed": 55, "every_step": 104}
+    assert summary["comparison"]["fisher_trace_images_fraction"] == pytest.approx(trace_used / 13)
+    assert summary["paper"]["images_used"] == {"fisher_trace": 55, "every_step": 104}
 
 
 def test_same_seed_gives_the_same_summary(tmp_path):

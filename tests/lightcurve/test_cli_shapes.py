@@ -1,4 +1,4 @@
-"""`lightcurve shapes …` through the CLI: round trip (acceptance 4), errors, built-ins (5)."""
+"""`lightcurve shapes …` through the CLI: round trip, errors, built-ins."""
 
 import numpy as np
 import pytest

@@ -290,7 +290,7 @@ def test_itokawa_synthetic_on_its_real_apparitions():
     hull_axis = attitude_matrix(truth.attitude(epoch)[0]).T @ hull_axis
     assert math.degrees(math.acos(abs(model_axis @ hull_axis))) < MISALIGNMENT_DEG
     # Volume-normalised axes: within 20 % on this reduced set (measured −18 %, +14 %, +8 %);
-    # the benchmark's full set (46 nights, 512 facets) measures the 10 % of the acceptance.
+    # the benchmark's full set (46 nights, 512 facets) is held to 10 %.
     axes = equivalent_ellipsoid((vertices, faces))
     hull_axes = equivalent_ellipsoid((hull.vertices, hull.faces))
     assert np.all(np.abs(axes / hull_axes - 1) < 0.20)

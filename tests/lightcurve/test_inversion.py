@@ -1,8 +1,8 @@
-"""The inversion API: input errors, the measurement model, and reduced acceptance studies.
+"""The inversion API: input errors, the measurement model, and reduced accuracy studies.
 
 The studies are the code of ``benchmarks/inversion.py`` (:mod:`lightcurve.inversion_study`)
-with fewer runs, shorter arcs and a lighter search; the properties asserted are those of
-issue 6's acceptance points 1–3.
+with fewer runs, shorter arcs and a lighter search; the properties asserted are the
+benchmark's targets for the UKF, the MMAE bank and the particle filter.
 """
 
 import math
@@ -90,7 +90,7 @@ def test_measurement_model_is_finite_when_dark_and_differentiable(sample):
     assert torch.all(torch.isfinite(gradient))
 
 
-def test_ukf_inversion_meets_acceptance_1_on_a_reduced_study():
+def test_ukf_inversion_meets_its_accuracy_target_on_a_reduced_study():
     """Box-wing, 20° and 0.2°/s prior errors, 1 Hz, 0.05 mag; 3 runs of 8 min (the
     benchmark: 50 runs of 20 min)."""
     study = ukf_study(runs=3, seed=11, scenario=Scenario(duration_s=480.0), **LIGHT)
@@ -138,7 +138,7 @@ def test_ukf_result_fields(sample):
 
 
 def test_mmae_picks_the_true_shape_and_flags_a_truth_outside_the_bank():
-    """Acceptance 2 reduced: a bank of the six library satellites, 6-min arcs; the truth
+    """MMAE study, reduced: a bank of the six library satellites, 6-min arcs; the truth
     inside the bank ends with p ≥ 0.9, a truth outside it (Itokawa in place of the
     box-wing) raises none_fits."""
     scenario = Scenario(duration_s=360.0)
@@ -166,7 +166,7 @@ def _reduced_pf_run(shape_name: str, seed: int) -> dict:
 
 
 def test_pf_reports_the_truth_among_the_modes_of_a_box():
-    """Acceptance 3 reduced: uniform attitude prior, |ω| ≤ 5°/s, a box (4 rotational
+    """Particle-filter study, reduced: uniform attitude prior, |ω| ≤ 5°/s, a box (4 rotational
     symmetries, mirror planes); 5-min arc, 600 particles."""
     record = _reduced_pf_run("box", seed=3)
     assert record["truth_in_modes"], record

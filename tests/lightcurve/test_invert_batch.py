@@ -1,4 +1,4 @@
-"""Acceptance 4 of the inversion issue, end to end through ``lightcurve invert``.
+"""Batch inversion end to end through ``lightcurve invert``.
 
 Forty simulated inputs, one truncated, one with a NaN magnitude and one whose header names a
 shape the library does not have: 37 "ok" summaries and 3 "error" records with clear

@@ -1,5 +1,5 @@
 """Photometric observation scheduling: the magnitude Jacobian, the error-state transition and
-planned vs uniform epochs for a tumbling box-wing (issue 9, acceptance 3, reduced study)."""
+planned vs uniform epochs for a tumbling box-wing (a reduced ``benchmarks/planner.py`` study)."""
 
 from __future__ import annotations
 
@@ -148,7 +148,7 @@ def test_process_noise_at_rest_is_the_closed_form(box_wing, geometry):
 
 
 def test_planned_epochs_beat_uniform_spacing(box_wing, geometry):
-    """Acceptance 3, reduced: 3 tumbling runs, 24 of 240 epochs, 6 and 11 error states."""
+    """Reduced study: 3 tumbling runs, 24 of 240 epochs, 6 and 11 error states."""
     p0 = np.diag([np.radians(5.0) ** 2 / 4] * 3 + [np.radians(0.05) ** 2] * 3)
     for estimate_inertia in (False, True):
         model = PhotometricPlanningModel.from_observations(

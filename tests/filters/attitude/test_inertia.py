@@ -1,4 +1,4 @@
-"""Inertia parameterisations and validity checks (seeds 000 and 004)."""
+"""Inertia parameterisations and validity checks (Deng et al. 2024; Feng et al.)."""
 
 import numpy as np
 import pytest
@@ -20,13 +20,13 @@ from filters.attitude import (
     validate_inertia,
 )
 
-J_SEED000 = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
+J_NUTATION = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 
 
 def test_normalized_round_trip():
-    l = normalized_from_inertia(J_SEED000 * 7.0)
+    l = normalized_from_inertia(J_NUTATION * 7.0)
     np.testing.assert_allclose(l, [0.85, 1.37, 0.13, 0.17, -0.11], atol=1e-15)
-    np.testing.assert_allclose(inertia_from_normalized(l), J_SEED000, atol=1e-15)
+    np.testing.assert_allclose(inertia_from_normalized(l), J_NUTATION, atol=1e-15)
 
 
 @settings(max_examples=300, deadline=None)
@@ -67,8 +67,8 @@ def test_principal_dynamics_equal_full_tensor():
 
 
 def test_principal_axes_diagonalise():
-    moments, axes = principal_axes(J_SEED000)
-    np.testing.assert_allclose(axes.T @ J_SEED000 @ axes, np.diag(moments), atol=1e-14)
+    moments, axes = principal_axes(J_NUTATION)
+    np.testing.assert_allclose(axes.T @ J_NUTATION @ axes, np.diag(moments), atol=1e-14)
     assert np.linalg.det(axes) == pytest.approx(1.0)
 
 
@@ -93,7 +93,7 @@ def test_thin_plate_is_physical_but_has_no_tanh_form():
     with pytest.raises(InertiaError, match="strictly"):
         tanh_from_inertia(plate)
     with pytest.raises(InertiaError, match="principal-axis"):
-        tanh_from_inertia(J_SEED000)
+        tanh_from_inertia(J_NUTATION)
 
 
 def test_tanh_is_differentiable_in_torch():

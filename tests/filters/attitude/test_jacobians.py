@@ -1,4 +1,4 @@
-"""Analytic Jacobians against torch autograd (seed 000 eqs. 27–31, seed 004 tanh form)."""
+"""Analytic Jacobians against torch autograd (Deng et al. 2024, eqs. 27–31; the tanh form)."""
 
 import numpy as np
 import torch
@@ -20,7 +20,7 @@ from filters.attitude import (
     transition_matrix,
 )
 
-J_SEED000 = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
+J_NUTATION = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 OMEGA = np.deg2rad([5.0, 2.3, 3.5])
 
 
@@ -28,9 +28,9 @@ def t(x):
     return torch.tensor(x, dtype=torch.float64)
 
 
-def test_seed000_jacobians_match_autograd():
+def test_normalized_inertia_jacobians_match_autograd():
     """M = ∂ω̇/∂ω and N = ∂ω̇/∂l of the 11-state model equal autograd to 1e-9."""
-    l = normalized_from_inertia(J_SEED000)
+    l = normalized_from_inertia(J_NUTATION)
     for w in (OMEGA, np.array([0.3, -0.7, 0.2])):
         m_auto = jacobian(lambda ww: euler_rate(ww, inertia_from_normalized(t(l))), t(w))
         n_auto = jacobian(lambda ll, w=w: euler_rate(t(w), inertia_from_normalized(ll)), t(l))
@@ -51,7 +51,7 @@ def test_error_state_attitude_block_is_true_linearisation():
     from filters.attitude import quaternion_conjugate, quaternion_multiply, rk4_step
     from filters.attitude.propagation import torque_free_derivative
 
-    f = torque_free_derivative(J_SEED000)
+    f = torque_free_derivative(J_NUTATION)
     q = random_quaternion(rng=30)
     dq0 = np.array([1e-6, -2e-6, 0.5e-6])
     dw0 = np.array([2e-7, 1e-7, -1e-7])
@@ -62,7 +62,7 @@ def test_error_state_attitude_block_is_true_linearisation():
     x_ref1 = rk4_step(f, x_ref, dt)
     x_pert1 = rk4_step(f, x_pert, dt)
     dq1 = quaternion_multiply(x_pert1[:4], quaternion_conjugate(x_ref1[:4]))[:3]
-    c = error_state_matrix(OMEGA, normalized_from_inertia(J_SEED000))[:6, :6]
+    c = error_state_matrix(OMEGA, normalized_from_inertia(J_NUTATION))[:6, :6]
     predicted = transition_matrix(c, dt) @ np.r_[dq0, dw0]
     np.testing.assert_allclose(dq1, predicted[:3], atol=1e-12)
     np.testing.assert_allclose(x_pert1[4:] - x_ref1[4:], predicted[3:], atol=1e-12)
@@ -78,14 +78,14 @@ def test_tanh_jacobian_matches_autograd():
 
 def test_full_state_jacobian_matches_autograd():
     x = np.r_[random_quaternion(rng=32), OMEGA]
-    auto = jacobian(lambda xx: state_derivative(xx, t(J_SEED000)), t(x))
-    np.testing.assert_allclose(state_jacobian(x, J_SEED000), auto.numpy(), atol=1e-12)
+    auto = jacobian(lambda xx: state_derivative(xx, t(J_NUTATION)), t(x))
+    np.testing.assert_allclose(state_jacobian(x, J_NUTATION), auto.numpy(), atol=1e-12)
 
 
 def test_batched_and_torch_jacobians():
     rng = np.random.default_rng(33)
     w = rng.normal(size=(4, 3))
-    l = normalized_from_inertia(J_SEED000)
+    l = normalized_from_inertia(J_NUTATION)
     c = error_state_matrix(w, l)
     assert c.shape == (4, 11, 11)
     np.testing.assert_allclose(c[2], error_state_matrix(w[2], l), atol=1e-15)

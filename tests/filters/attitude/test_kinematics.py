@@ -1,4 +1,4 @@
-"""Kinematics: Ω(ω) of seed 000 eq. 11 and its equivalent forms."""
+"""Kinematics: Ω(ω) of Deng et al. 2024, eq. 11 and its equivalent forms."""
 
 import numpy as np
 
@@ -13,7 +13,7 @@ from filters.attitude import (
 )
 
 
-def test_omega_matrix_matches_seed000_eq11():
+def test_omega_matrix_matches_deng2024_eq11():
     wx, wy, wz = 0.1, -0.2, 0.3
     expected = np.array([[0, wz, -wy, wx], [-wz, 0, wx, wy], [wy, -wx, 0, wz], [-wx, -wy, -wz, 0]])
     np.testing.assert_array_equal(omega_matrix([wx, wy, wz]), expected)

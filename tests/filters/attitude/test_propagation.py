@@ -21,26 +21,26 @@ from filters.attitude import (
     torque_free_trajectory,
 )
 
-# Seed 000 scenario A: a nutating body (J and ω0 of the paper).
-J_SEED000 = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
-OMEGA_SEED000 = np.deg2rad([5.0, 2.3, 3.5])
+# The nutating body of Deng et al. 2024, scenario A (J and ω0 of the paper).
+J_NUTATION = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
+OMEGA_NUTATION = np.deg2rad([5.0, 2.3, 3.5])
 
 
-def test_conservation_seed000_scenario_a():
+def test_conservation_nutating_body():
     """DOP853 at rtol 1e-12 over 10⁴ s conserves T and |H| (and H in inertial space)."""
-    x0 = np.r_[0.0, 0.0, 0.0, 1.0, OMEGA_SEED000]
+    x0 = np.r_[0.0, 0.0, 0.0, 1.0, OMEGA_NUTATION]
     times = np.linspace(0.0, 1e4, 201)
-    raw = propagate(x0, times, J_SEED000, normalize=False)
+    raw = propagate(x0, times, J_NUTATION, normalize=False)
     w = raw[:, 4:]
-    energy = 0.5 * np.einsum("ni,ij,nj->n", w, J_SEED000, w)
-    h_body = w @ J_SEED000.T
+    energy = 0.5 * np.einsum("ni,ij,nj->n", w, J_NUTATION, w)
+    h_body = w @ J_NUTATION.T
     assert np.max(np.abs(energy / energy[0] - 1)) < 1e-9
     h_norm = np.linalg.norm(h_body, axis=1)
     assert np.max(np.abs(h_norm / h_norm[0] - 1)) < 1e-9
     q = raw[:, :4]
     # Raw integrator drift of |q| (measured 2e-11): the output is renormalised on request.
     assert np.max(np.abs(np.linalg.norm(q, axis=1) - 1)) < 1e-10
-    states = propagate(x0, times, J_SEED000)
+    states = propagate(x0, times, J_NUTATION)
     assert np.max(np.abs(np.linalg.norm(states[:, :4], axis=1) - 1)) < 1e-12
     h_inertial = np.einsum("nji,nj->ni", attitude_matrix(states[:, :4]), h_body)
     assert np.max(np.linalg.norm(h_inertial - h_inertial[0], axis=1)) < 1e-9 * h_norm[0]
@@ -73,19 +73,19 @@ def test_rk4_torch_equals_numpy_batched():
     rng = np.random.default_rng(14)
     n = 10_000
     x0 = np.concatenate([random_quaternion(n, rng), rng.normal(scale=0.05, size=(n, 3))], axis=1)
-    out_np = propagate_rk4(x0, J_SEED000, dt=1.0, n_steps=20)
-    out_t = propagate_rk4(torch.tensor(x0), torch.tensor(J_SEED000), dt=1.0, n_steps=20)
+    out_np = propagate_rk4(x0, J_NUTATION, dt=1.0, n_steps=20)
+    out_t = propagate_rk4(torch.tensor(x0), torch.tensor(J_NUTATION), dt=1.0, n_steps=20)
     assert isinstance(out_t, torch.Tensor)
     assert out_np.shape == (21, n, 7)
     np.testing.assert_allclose(out_t.numpy(), out_np, atol=1e-12, rtol=0)
 
 
 def test_rk4_converges_to_dop853_at_fourth_order():
-    x0 = np.r_[random_quaternion(rng=15), OMEGA_SEED000 * 10]
-    truth = propagate(x0, [0.0, 20.0], J_SEED000)[-1]
+    x0 = np.r_[random_quaternion(rng=15), OMEGA_NUTATION * 10]
+    truth = propagate(x0, [0.0, 20.0], J_NUTATION)[-1]
     errors = []
     for dt in (0.5, 0.25):
-        out = propagate_rk4(x0, J_SEED000, dt=dt, n_steps=int(20 / dt))[-1]
+        out = propagate_rk4(x0, J_NUTATION, dt=dt, n_steps=int(20 / dt))[-1]
         errors.append(np.max(np.abs(out - truth)))
     assert 12 < errors[0] / errors[1] < 20  # 2⁴ = 16
 
@@ -94,9 +94,9 @@ def test_batched_dop853_matches_single_runs():
     rng = np.random.default_rng(16)
     x0 = np.concatenate([random_quaternion(4, rng), rng.normal(scale=0.05, size=(4, 3))], axis=1)
     times = np.linspace(0.0, 50.0, 6)
-    batch = propagate(x0, times, J_SEED000)
+    batch = propagate(x0, times, J_NUTATION)
     for i in range(4):
-        np.testing.assert_allclose(batch[:, i], propagate(x0[i], times, J_SEED000), atol=1e-10)
+        np.testing.assert_allclose(batch[:, i], propagate(x0[i], times, J_NUTATION), atol=1e-10)
 
 
 def test_torque_changes_momentum_as_expected():
@@ -111,17 +111,17 @@ def test_state_derivative_matches_generic_closure():
     rng = np.random.default_rng(17)
     x = np.concatenate([random_quaternion(5, rng), rng.normal(size=(5, 3))], axis=1)
     np.testing.assert_allclose(
-        torque_free_derivative(J_SEED000)(x), state_derivative(x, J_SEED000), atol=1e-14
+        torque_free_derivative(J_NUTATION)(x), state_derivative(x, J_NUTATION), atol=1e-14
     )
-    step = rk4_step(torque_free_derivative(J_SEED000), x, 0.1)
+    step = rk4_step(torque_free_derivative(J_NUTATION), x, 0.1)
     np.testing.assert_allclose(np.linalg.norm(step[:, :4], axis=1), 1.0, atol=1e-15)
 
 
 def test_propagate_rejects_bad_input():
     with pytest.raises(ValueError, match="strictly increasing"):
-        propagate(np.r_[0, 0, 0, 1, 0, 0, 0.1], [0.0, 2.0, 1.0], J_SEED000)
+        propagate(np.r_[0, 0, 0, 1, 0, 0, 0.1], [0.0, 2.0, 1.0], J_NUTATION)
     with pytest.raises(ValueError, match="finite"):
-        propagate(np.r_[0, 0, 0, 1, np.nan, 0, 0.1], [0.0, 1.0], J_SEED000)
+        propagate(np.r_[0, 0, 0, 1, np.nan, 0, 0.1], [0.0, 1.0], J_NUTATION)
     with pytest.raises(ValueError, match="triangle inequality"):
         propagate(np.r_[0, 0, 0, 1, 0, 0, 0.1], [0.0, 1.0], np.diag([1.0, 1.0, 3.0]))
 
@@ -145,7 +145,7 @@ def test_trajectory_chains_equal_the_core_rk4_and_the_tanh_form_its_inertia():
     q0 = random_quaternion(5, rng)
     w0 = rng.normal(0.0, 0.05, (5, 3))
     k = rng.normal(0.0, 0.7, (5, 2))
-    axes = principal_axes(J_SEED000)[1]
+    axes = principal_axes(J_NUTATION)[1]
     inertias = axes @ inertia_from_tanh(k) @ axes.T
     offsets = np.array([7.0, -3.5, 2.5, 0.0, -9.0])
     expected = np.empty((5, len(offsets), 7))
@@ -180,7 +180,7 @@ def test_compiled_trajectory_equals_the_element_wise_torch_kernel(per_body):
     inertia = (
         PrincipalInertia.from_tanh(rng.normal(0.0, 0.7, (64, 2)))
         if per_body
-        else PrincipalInertia.from_inertia(J_SEED000)
+        else PrincipalInertia.from_inertia(J_NUTATION)
     )
     offsets = np.array([0.0, 13.0, -4.0, 3.5, -30.0, 61.0])
     q, w = torque_free_trajectory(q0, w0, offsets, inertia, 2.0)

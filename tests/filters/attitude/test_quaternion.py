@@ -58,8 +58,8 @@ def test_attitude_matrix_maps_inertial_to_body():
     np.testing.assert_allclose(attitude_matrix(q) @ [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], atol=1e-15)
 
 
-def test_seed000_eq10_form():
-    """Seed 000 eq. 10 writes A = (2 q4² − 1) I + 2 q_v q_vᵀ − 2 q4 [q_v×] for unit q."""
+def test_deng2024_eq10_form():
+    """Deng et al. 2024, eq. 10 writes A = (2 q4² − 1) I + 2 q_v q_vᵀ − 2 q4 [q_v×] for unit q."""
     q = random_quaternion(50, rng=2)
     qv, q4 = q[:, :3], q[:, 3]
     skew = np.zeros((50, 3, 3))
