@@ -31,8 +31,9 @@ from lightcurve.atomic import atomic_write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: Each command: a name and the argument lists run in order (the first ones prepare inputs and
-#: are not timed when the name's last element is the timed one). ``{tmp}`` is a scratch folder.
+#: Each command: the argument lists that prepare its inputs (``setup``, untimed) and the timed
+#: one. ``{tmp}`` is the command's scratch folder, ``{out}`` a fresh folder per timed run (a
+#: batch inversion resumes from outputs already written, so each run must start empty).
 COMMANDS: dict[str, dict[str, list[list[str]]]] = {
     "simulate": {
         "setup": [
@@ -62,7 +63,7 @@ COMMANDS: dict[str, dict[str, list[list[str]]]] = {
             "--seed",
             "1",
             "--out",
-            "{tmp}/sim.csv",
+            "{out}/sim.csv",
         ],
     },
     "tour-ukf": {
@@ -103,7 +104,7 @@ COMMANDS: dict[str, dict[str, list[list[str]]]] = {
             "--method",
             "ukf",
             "--out",
-            "{tmp}/inv",
+            "{out}/inv",
         ],
     },
     "main-job-file": {
@@ -116,7 +117,7 @@ COMMANDS: dict[str, dict[str, list[list[str]]]] = {
             "--method",
             "mmae",
             "--out",
-            "{tmp}/mmae",
+            "{out}/mmae",
         ],
     },
     "convex": {
@@ -129,7 +130,7 @@ COMMANDS: dict[str, dict[str, list[list[str]]]] = {
             "--period",
             "5.76198",
             "--out",
-            "{tmp}/ariadne",
+            "{out}/ariadne",
         ],
     },
 }
@@ -143,7 +144,8 @@ def _spin() -> None:
 
 def _run(argv: list[str], extra: list[str], tmp: str) -> dict[str, float]:
     """Run ``lightcurve`` with ``argv`` and return its wall and CPU seconds (process tree)."""
-    args = [sys.executable, "-m", "lightcurve", *extra, *(a.format(tmp=tmp) for a in argv)]
+    out = tempfile.mkdtemp(dir=tmp)
+    args = [sys.executable, "-m", "lightcurve", *extra, *(a.format(tmp=tmp, out=out) for a in argv)]
     start = time.perf_counter()
     process = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(process.pid, 0)
