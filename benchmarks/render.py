@@ -8,6 +8,8 @@ One run measures, each with its baseline and the ratio (best of ``--repeats``):
   relative to Lambert's;
 * Ashikhmin–Shirley on 20 480 facets and in the particle-filter shape (10⁴ attitudes × one
   epoch), relative to the 1280-facet rate;
+* every BRDF on one thread in CPU time (``time.thread_time``: what other processes take
+  of a shared machine's cores is left out), with Lambert's rate over each;
 * the one-off cost of the first call in a fresh process (kernel compilation, or loading it
   from numba's on-disk cache) measured in a subprocess;
 * the cost of a small call (13 sigma points × one epoch of a 24-facet cylinder, the UKF's),
@@ -33,7 +35,7 @@ import torch
 
 from benchmarks._machine import machine_info
 from filters.attitude import random_quaternion
-from lightcurve.kernels import get_num_threads
+from lightcurve.kernels import get_num_threads, set_num_threads
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
 from shapes import Material, get_library, primitives
@@ -123,6 +125,46 @@ def rate(renderer: Renderer, q, sun, obs, repeats: int) -> float:
     renderer.flux(q[:64], sun[:64] if sun.ndim > 1 else sun, obs[:64] if obs.ndim > 1 else obs)
     seconds = best_time(lambda: renderer.flux(q, sun, obs), repeats)
     return renderer.n_facets * len(q) / seconds
+
+
+def cpu_rate(renderer: Renderer, q, sun, obs, repeats: int) -> float:
+    """Facet-epochs per CPU-second of ``renderer.flux`` on the calling thread alone.
+
+    CPU time of the calling thread (``time.thread_time``) rather than wall time: on a shared
+    machine, the time other processes hold the core is left out.
+    """
+    renderer.flux(q[:64], sun[:64] if sun.ndim > 1 else sun, obs[:64] if obs.ndim > 1 else obs)
+    set_num_threads(1)
+    try:
+        best = np.inf
+        for _ in range(repeats):
+            start = time.thread_time()
+            renderer.flux(q, sun, obs)
+            best = min(best, time.thread_time() - start)
+    finally:
+        set_num_threads(None)  # back to following torch's thread count
+    return renderer.n_facets * len(q) / best
+
+
+def single_thread_cpu_rates(sphere, q, sun, obs, repeats: int) -> dict:
+    """Every BRDF on one thread, in CPU time, with Lambert's rate over each (per dtype)."""
+    out = {}
+    for dtype in (torch.float32, torch.float64):
+        key = str(dtype).split(".")[-1]
+        rates = {
+            name: cpu_rate(
+                Renderer(material_shape(sphere, name), dtype=dtype), q, sun, obs, repeats
+            )
+            for name in MATERIALS
+        }
+        out[key] = {
+            name: {
+                "facet_epochs_per_cpu_second": value,
+                "lambert_over_this": rates["lambert"] / value,
+            }
+            for name, value in rates.items()
+        }
+    return out
 
 
 def first_call_seconds(dtype: str) -> dict:
@@ -223,6 +265,9 @@ def main() -> None:
                 "unit": "facet-epochs per second",
                 "results": results,
                 "ashikhmin_shirley_scaling": scaling,
+                "single_thread_cpu_time": single_thread_cpu_rates(
+                    sphere, q, sun, obs, max(args.repeats, 5)
+                ),
                 "first_call_fresh_process": first_calls,
                 "small_calls": small_calls(args.repeats),
                 "shadow_table_vs_exact": shadow_table_accuracy(),

@@ -185,10 +185,8 @@ class Renderer:
         )
         self.scale_sun_distance = scale_sun_distance
 
-        # Sort facets by material so that each BRDF sees one contiguous block (a view), and
-        # by direction within a material so that neighbours in memory face alike: the fused
-        # kernels then skip whole tiles of facets that are dark or turned away.
-        order = np.lexsort((_direction_key(compiled.normals), compiled.material_index))
+        # Sort facets by material so that each BRDF sees one contiguous block (a view).
+        order = np.argsort(compiled.material_index, kind="stable")
         self._order = order
         normals = compiled.normals[order]
         tangents = compiled.tangents[order]
@@ -485,28 +483,6 @@ def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., tor
             return kernel(*args)
 
     return run
-
-
-def _direction_key(normals: np.ndarray, bits: int = 6) -> np.ndarray:
-    """Z-order (Morton) index of unit vectors on the octahedral map, ``2^bits`` cells a side.
-
-    Vectors with close indices point in close directions (octahedral unit-vector encoding:
-    Meyer et al. 2010, "On floating-point normal vectors").
-    """
-    n = normals / np.maximum(np.abs(normals).sum(axis=1, keepdims=True), 1e-300)
-    u, v = n[:, 0], n[:, 1]
-    lower = n[:, 2] < 0
-    u, v = (
-        np.where(lower, (1.0 - np.abs(v)) * np.sign(u), u),
-        np.where(lower, (1.0 - np.abs(u)) * np.sign(v), v),
-    )
-    cells = 1 << bits
-    ix = np.clip(((u + 1.0) * 0.5 * cells).astype(np.int64), 0, cells - 1)
-    iy = np.clip(((v + 1.0) * 0.5 * cells).astype(np.int64), 0, cells - 1)
-    key = np.zeros(len(normals), dtype=np.int64)
-    for bit in range(bits):
-        key |= ((ix >> bit) & 1) << (2 * bit) | ((iy >> bit) & 1) << (2 * bit + 1)
-    return key
 
 
 def _is_tensor(value: Any) -> bool:

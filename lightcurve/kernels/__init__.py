@@ -10,6 +10,7 @@ compilation is paid once per machine and installation, not per process.
 
 Modules: :mod:`~lightcurve.kernels.elementary` (vectorisable ``exp``/``log``),
 :mod:`~lightcurve.kernels.brdf_sums` (one row loop per BRDF),
+:mod:`~lightcurve.kernels.tiles` (facets in tiles bounded by cones of normals),
 :mod:`~lightcurve.kernels.rows` (body-frame geometry),
 :mod:`~lightcurve.kernels.threads` (row ranges on a thread pool).
 """
@@ -24,6 +25,7 @@ import numpy as np
 from lightcurve.kernels.brdf_sums import ANISOTROPIC, KINDS, LOMMEL_SEELIGER, ROW_KERNELS
 from lightcurve.kernels.rows import body_geometry
 from lightcurve.kernels.threads import get_num_threads, run_rows, set_num_threads
+from lightcurve.kernels.tiles import tile_layout
 
 __all__ = [
     "FusedFlux",
@@ -100,76 +102,77 @@ class FusedFlux:
     Parameters
     ----------
     facets : (10, K) array
-        :func:`facet_table` of facets sorted by material block.
+        :func:`facet_table` of the facets, sorted by material block.
     blocks : sequence of (kind, start, stop, parameter row)
-        One entry per material block (:func:`block_parameters`).
+        One entry per material block ``facets[:, start:stop]`` (:func:`block_parameters`).
     dtype : numpy dtype
         Compute precision (float32 or float64).
+
+    Notes
+    -----
+    The kernels see the facets in tile layout (:mod:`lightcurve.kernels.tiles`): each block
+    rearranged into tiles of facets with similar normals, padded with zero-area slots.
+    :attr:`source` gives the input facet of every slot; callers keep the input order.
     """
 
     def __init__(
         self, facets: np.ndarray, blocks: Sequence[tuple[int, int, int, list]], dtype: type
     ) -> None:
         self.dtype = np.dtype(dtype)
-        self.facets = np.ascontiguousarray(facets, dtype=self.dtype)
-        self.kinds = np.array([b[0] for b in blocks], dtype=np.int64)
-        self.starts = np.array([b[1] for b in blocks], dtype=np.int64)
-        self.stops = np.array([b[2] for b in blocks], dtype=np.int64)
-        self.params = np.array([b[3] for b in blocks], dtype=self.dtype).reshape(-1, 6)
-        self._no_shadow = np.ones((1, self.facets.shape[1]), dtype=self.dtype)
-        self._row_kernels = [
-            (ROW_KERNELS[kind], start, stop, row)
-            for kind, start, stop, row in zip(
-                self.kinds.tolist(),
-                self.starts.tolist(),
-                self.stops.tolist(),
-                self.params,
-                strict=True,
-            )
+        table = np.asarray(facets, dtype=self.dtype)
+        # The cones bound the normals the kernels use (rounded to the compute dtype).
+        layout = tile_layout(
+            table[:3].T.astype(np.float64), [np.arange(b[1], b[2]) for b in blocks]
+        )
+        self.source = layout.source
+        self.facets = np.ascontiguousarray(table[:, layout.source])
+        self.facets[3, layout.padding] = 0.0
+        self.cones = layout.cones
+        self._blocks = [
+            (ROW_KERNELS[kind], int(first), int(last), np.asarray(row, dtype=np.float64))
+            for (kind, _, _, row), (first, last) in zip(blocks, layout.block_tiles, strict=True)
         ]
 
     @property
-    def n_facets(self) -> int:
+    def n_slots(self) -> int:
+        """Facet slots of the tile layout (facets and padding)."""
         return self.facets.shape[1]
 
     def geometry(
         self, q: np.ndarray, sun: np.ndarray, observer: np.ndarray, au: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Body-frame ``L``, ``V`` (compute dtype) and the distance factor (float64) per row.
+        """Body-frame ``L``, ``V`` and the distance factor per row (float64).
 
         Parameters are (R, 4), (R, 3), (R, 3) float64 arrays and ``1 AU`` in metres (0: no
         solar-distance scaling); see :func:`lightcurve.kernels.rows.body_geometry`.
         """
         rows = q.shape[0]
-        light = np.empty((rows, 3), dtype=self.dtype)
-        view = np.empty((rows, 3), dtype=self.dtype)
-        scale = np.empty(rows, dtype=np.float64)
+        light = np.empty((rows, 3))
+        view = np.empty((rows, 3))
+        scale = np.empty(rows)
         body_geometry(q, sun, observer, au, light, view, scale)
         return light, view, scale
 
     def sums(
         self, light: np.ndarray, view: np.ndarray, shadow: np.ndarray | None = None
     ) -> np.ndarray:
-        """``Σ_i ρ_i A_i (n_i·L)(n_i·V) · shadow_i`` per row (compute dtype).
+        """``Σ_i ρ_i A_i (n_i·L)(n_i·V) · shadow_i`` per row (float64).
 
         Parameters
         ----------
-        light, view : (R, 3) arrays
-            Body-frame unit vectors (compute dtype, C order).
+        light, view : (R, 3) float64 arrays
+            Body-frame unit vectors (C order).
         shadow : (R, K) array, optional
-            Shadow factor per row and facet (compute dtype); ``None`` for none.
+            Shadow factor per row and facet (input order); ``None`` for none.
         """
-        out = np.zeros(light.shape[0], dtype=self.dtype)
-        factor = self._no_shadow if shadow is None else shadow
-        blocks = self._row_kernels
+        out = np.zeros(light.shape[0])
+        if shadow is not None:  # the factor of every slot, in the compute dtype
+            shadow = np.ascontiguousarray(np.take(shadow, self.source, axis=1), dtype=self.dtype)
+        facets, cones, blocks = self.facets, self.cones, self._blocks
 
         def kernel(start: int, stop: int) -> None:
-            rows = slice(start, stop)
-            shadow_rows = factor if shadow is None else factor[rows]
             for row_kernel, first, last, p in blocks:
-                row_kernel(
-                    light[rows], view[rows], self.facets, first, last, p, shadow_rows, out[rows]
-                )
+                row_kernel(light, view, facets, cones, first, last, p, shadow, out, start, stop)
 
-        run_rows(kernel, light.shape[0], self.n_facets)
+        run_rows(kernel, light.shape[0], self.n_slots)
         return out

@@ -1,12 +1,21 @@
 """The fused numba kernels against numpy, the torch path, the numpy reference and autograd."""
 
+import copy
+
 import numpy as np
 import pytest
 import torch
 from numba import njit
 
 from filters.attitude import random_quaternion
-from lightcurve.kernels import elementary, get_num_threads, set_num_threads
+from lightcurve.kernels import (
+    FusedFlux,
+    block_parameters,
+    elementary,
+    facet_table,
+    get_num_threads,
+    set_num_threads,
+)
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
 from shapes import Material, get_library, primitives
@@ -141,3 +150,111 @@ def test_gradients_take_the_torch_path_and_match_differences_of_the_fused_path()
         np.testing.assert_allclose(
             gradient[:, k].numpy(), central, rtol=1e-5, atol=1e-8 * np.max(np.abs(central))
         )
+
+
+@njit(cache=True)
+def _base_two(x, y, normal_x, normal_y, out):
+    for i in range(x.size):
+        out[0, i] = elementary.log2(x[i])
+        out[1, i] = elementary.exp2(y[i])
+        out[2, i] = elementary.log2_normal(normal_x[i])
+        out[3, i] = elementary.exp2_normal(normal_y[i])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_base_two_log_and_exp_over_the_whole_range(dtype):
+    """log₂ and 2^y over every binade, subnormals, underflow and overflow included."""
+    info = np.finfo(dtype)
+    rng = np.random.default_rng(17)
+    low, high = float(np.log2(info.smallest_subnormal)), float(np.log2(info.max))
+    edges = [info.smallest_subnormal, info.tiny, np.sqrt(0.5), 1.0, info.max]
+    x = np.concatenate([np.exp2(rng.uniform(low, high, 20000)), edges]).astype(dtype)
+    x = np.concatenate([x, np.nextafter(dtype(1.0), dtype([0.0, 2.0]))])
+    y = np.concatenate([rng.uniform(low - 3.0, high + 3.0, x.size - 4), [0.0, -0.5, 0.5, 1e-30]])
+    y = y.astype(dtype)
+    normal_x = np.where(x >= info.tiny, x, info.tiny).astype(dtype)
+    normal_y = np.minimum(y, dtype(info.maxexp - 1))
+    out = np.empty((4, x.size), dtype=dtype)
+    _base_two(x, y, normal_x, normal_y, out)
+    wide = np.longdouble
+    # Reference in extended precision where the platform has it, else one more ulp of slack.
+    slack = 2.0 if np.finfo(wide).eps < np.finfo(np.float64).eps else 3.0
+
+    def ulps(value, exact):
+        return np.abs(value.astype(wide) - exact) / np.spacing(np.abs(exact).astype(dtype))
+
+    assert np.max(ulps(out[0], np.log2(x.astype(wide)))) <= slack
+    assert np.max(ulps(out[2], np.log2(normal_x.astype(wide)))) <= slack
+    exact = np.exp2(y.astype(wide))
+    normal = (exact >= info.tiny) & (exact <= info.max)
+    subnormal = (exact < info.tiny) & (exact >= info.smallest_subnormal)
+    assert np.max(ulps(out[1][normal], exact[normal])) <= slack
+    assert np.all(np.abs(out[1][subnormal] - exact[subnormal]) <= info.smallest_subnormal)
+    assert np.all(out[1][exact < 0.5 * info.smallest_subnormal] == 0.0)
+    assert np.all(np.isposinf(out[1][exact > info.max]))
+    exact = np.exp2(normal_y.astype(wide))
+    normal = exact >= info.tiny
+    assert np.max(ulps(out[3][normal], exact[normal])) <= slack
+    assert np.all(out[3][~normal] == 0.0)
+
+
+def _several_materials(dtype, seed=18):
+    """A FusedFlux of random facets in one block per kernel (every BRDF, anisotropic too)."""
+    rng = np.random.default_rng(seed)
+    names = ["lambert", "phong", "cook-torrance", "ashikhmin-shirley", "anisotropic"]
+    names.append("lommel-seeliger")
+    per_block = 101  # not a multiple of the tile size: padding slots
+    normals = rng.normal(size=(per_block * len(names), 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    tangents = np.cross(normals, rng.normal(size=normals.shape))
+    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    areas = rng.uniform(0.5, 2.0, len(normals))
+    blocks = []
+    for k, material in enumerate(names):
+        name, params = MATERIALS[material]
+        kind, row = block_parameters(name, params, material == "anisotropic")
+        blocks.append((kind, k * per_block, (k + 1) * per_block, row))
+    return FusedFlux(facet_table(normals, areas, tangents, dtype), blocks, dtype), normals
+
+
+def _never_skipping(fused):
+    """``fused`` with cones that never skip a tile (the plain loops)."""
+    plain = copy.copy(fused)
+    plain.cones = fused.cones.copy()
+    plain.cones[3] = 2.0
+    return plain
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_tile_culling_gives_the_sums_of_the_plain_loops(dtype):
+    """Skipping tiles by their cones of normals changes no sum (up to summation order):
+    random geometries, every facet both lit and seen, none, and boundary sets."""
+    fused, normals = _several_materials(dtype)
+    plain = _never_skipping(fused)
+    rng = np.random.default_rng(19)
+    light = rng.normal(size=(40, 3))
+    view = rng.normal(size=(40, 3))
+    # L = V (opposition), L = −V (no facet lit and seen), L ⊥ V, and L on a facet's
+    # tangent plane (that facet on the boundary of the lit set).
+    light[:4], view[:4] = light[4:8], light[4:8]
+    light[8:12], view[8:12] = light[12:16], -light[12:16]
+    view[16] = np.cross(light[16], view[16])
+    light[17] = np.cross(normals[0], rng.normal(size=3))
+    light /= np.linalg.norm(light, axis=1, keepdims=True)
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    shadow = rng.uniform(0.0, 1.0, (40, len(normals)))
+    tol = 1e-13 if dtype == np.float64 else 1e-5
+    for factor in (None, shadow):
+        culled = fused.sums(light, view, factor)
+        reference = plain.sums(light, view, factor)
+        assert np.max(np.abs(culled - reference)) <= tol * np.max(reference)
+        np.testing.assert_array_equal(culled[8:12], 0.0)
+    # Every facet lit and seen: a cap of normals around the direction of L = V.
+    cap = normals[:, 2] > 0.6
+    table = facet_table(normals[cap], np.ones(cap.sum()), np.roll(normals[cap], 1, axis=1), dtype)
+    kind, row = block_parameters(*MATERIALS["ashikhmin-shirley"], False)
+    fused_cap = FusedFlux(table, [(kind, 0, int(cap.sum()), row)], dtype)
+    plain_cap = _never_skipping(fused_cap)
+    up = np.array([[0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(fused_cap.sums(up, up), plain_cap.sums(up, up), rtol=tol)
+    np.testing.assert_array_equal(plain_cap.sums(-up, up), 0.0)
