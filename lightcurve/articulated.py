@@ -37,14 +37,13 @@ import numpy as np
 
 from filters.attitude import rotate
 from lightcurve.render import Renderer, flux_to_magnitude
-from shapes.articulation import ArticulatedModel
+from shapes.articulation import ArticulatedModel, axis_rotation
 from shapes.posed_visibility import PosedShadows
 from shapes.visibility import DEFAULT_SAMPLES, build_visibility_table
 
 __all__ = ["ARTICULATED_SHADOW_MODES", "ArticulatedRenderer"]
 
 ARTICULATED_SHADOW_MODES = ("auto", "none", "table", "exact")
-_IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 class ArticulatedRenderer:
@@ -126,40 +125,67 @@ class ArticulatedRenderer:
         sun = np.broadcast_to(sun, (*shape, 3)).reshape(-1, 3)
         observer = np.broadcast_to(observer, (*shape, 3)).reshape(-1, 3)
         if columns is not None:
-            columns = {k: np.broadcast_to(np.asarray(v, float), shape).ravel() for k, v in
-                       columns.items()}
-        sun_body = rotate(q, sun)
-        obs_body = rotate(q, observer)
-        moving = self.shape.moving_rotations(sun_body, columns)  # (M, N, 3, 3)
-        rotations = (
-            np.concatenate([np.broadcast_to(np.eye(3), (1, len(q), 3, 3)), moving])
-            if self._has_body
-            else moving
-        )
-        fractions = (
-            self._shadows.fractions(
-                rotations,
-                sun_body / np.linalg.norm(sun_body, axis=1, keepdims=True),
-                obs_body / np.linalg.norm(obs_body, axis=1, keepdims=True),
+            columns = {
+                k: np.broadcast_to(np.asarray(v, float), shape).ravel() for k, v in columns.items()
+            }
+        moving = self._moving
+        sun_body = _to_body(q, sun)
+        angles = np.radians(
+            [p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in moving]
+        ).reshape(len(moving), len(q))
+        attitudes = [q] * self._has_body + [
+            _joint_attitude(p.joint.axis, a, q) for p, a in zip(moving, angles, strict=True)
+        ]
+        if self._shadows is None:
+            total = sum(
+                r.flux(a, sun, observer) for r, a in zip(self.renderers, attitudes, strict=True)
             )
-            if self._shadows is not None
-            else None
+            return np.asarray(total).reshape(shape)
+        rotations = np.stack(
+            [np.broadcast_to(np.eye(3), (len(q), 3, 3))] * self._has_body
+            + [axis_rotation(p.joint.axis, a) for p, a in zip(moving, angles, strict=True)]
         )
-        total = np.zeros(len(q))
-        for g, renderer in enumerate(self.renderers):
-            if g == 0 and self._has_body and fractions is None:
-                total += renderer.flux(q, sun, observer)  # the body turns with q alone
-                continue
-            s = np.einsum("nji,nj->ni", rotations[g], sun_body)
-            o = np.einsum("nji,nj->ni", rotations[g], obs_body)
-            if fractions is None:
-                total += renderer.flux(_IDENTITY_Q, s, o)
-            else:
-                total += np.sum(renderer.facet_flux(_IDENTITY_Q, s, o) * fractions[g], axis=1)
-        return total.reshape(shape)
+        obs_body = _to_body(q, observer)
+        fractions = self._shadows.fractions(
+            rotations,
+            sun_body / np.linalg.norm(sun_body, axis=1, keepdims=True),
+            obs_body / np.linalg.norm(obs_body, axis=1, keepdims=True),
+        )
+        total = sum(
+            np.sum(r.facet_flux(a, sun, observer) * f, axis=-1)
+            for r, a, f in zip(self.renderers, attitudes, fractions, strict=True)
+        )
+        return np.asarray(total).reshape(shape)
 
     def magnitude(
         self, q: Any, sun: Any, observer: Any, columns: Mapping[str, Any] | None = None
     ) -> np.ndarray:
         """Apparent magnitude (``inf`` when dark); parameters of :meth:`flux`."""
         return flux_to_magnitude(self.flux(q, sun, observer, columns))
+
+
+def _to_body(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``A(q) v`` for rows of quaternions and vectors: ``v − 2 q₄ (q_v × v) + 2 q_v × (q_v × v)``
+    (the attitude core's :func:`~filters.attitude.rotate`, in fewer numpy passes)."""
+    qv = q[:, :3]
+    t = 2.0 * np.cross(qv, v)
+    return v - q[:, 3:] * t + np.cross(qv, t)
+
+
+def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Attitude of a part's frame, ``A(q_g) = R(θ)ᵀ A(q)``: ``q_g = [a sin(θ/2), cos(θ/2)] ⊗ q``.
+
+    Parameters
+    ----------
+    axis : (3,) float
+        Unit joint axis, body frame.
+    angle : (N,) float
+        Joint angles, rad.
+    q : (N, 4) float
+        Body attitudes (inertial → body).
+    """
+    s, c = np.sin(0.5 * angle)[:, None], np.cos(0.5 * angle)[:, None]
+    qv, q4 = q[:, :3], q[:, 3:]
+    vector = c * qv + s * (q4 * axis - np.cross(axis, qv))
+    scalar = c * q4 - s * (qv @ axis)[:, None]
+    return np.concatenate([vector, scalar], axis=1)

@@ -98,7 +98,7 @@ def _unit(value: Any, what: str, where: str) -> np.ndarray:
     vector = _vector(value, what, where)
     norm = float(np.linalg.norm(vector))
     if not norm > 1e-12:
-        raise ShapeError(f"{where}: joint {what} {list(vector)} has zero length")
+        raise ShapeError(f"{where}: joint {what} {vector.tolist()} has zero length")
     return vector / norm
 
 
@@ -329,9 +329,7 @@ class Articulation:
         self, sun_body: np.ndarray, columns: Mapping[str, Any] | None = None
     ) -> np.ndarray:
         """Angle of every part's joint, degrees, shape ``(n_parts, *sun_body.shape[:-1])``."""
-        return np.stack(
-            [p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in self.parts]
-        )
+        return np.stack([p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in self.parts])
 
     def part_rotations(
         self, sun_body: np.ndarray, columns: Mapping[str, Any] | None = None

@@ -273,6 +273,7 @@ class ShapeLibrary:
     def validate(self, name: str) -> FacetModel:
         """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
         model = self.load(name, build_visibility=False)
+        self.articulation(name)  # parts, when present, must fit the mesh groups
         try:
             validate(model)
         except ShapeError as exc:
@@ -538,7 +539,9 @@ class ShapeLibrary:
                     (self.path / entry[key]).unlink(missing_ok=True)
 
 
-def _articulation(parts: Any, model: FacetModel, name: str, mesh: Path | None) -> Articulation | None:
+def _articulation(
+    parts: Any, model: FacetModel, name: str, mesh: Path | None
+) -> Articulation | None:
     """``parts`` validated against the model's groups (None when not given)."""
     if parts is None or isinstance(parts, Articulation):
         if parts is not None:

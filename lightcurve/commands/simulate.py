@@ -3,9 +3,10 @@
 GEOMETRY is an observation file (CSV, Parquet) whose mag columns may be absent. The attitude
 --q0/--omega0 holds at its first epoch; the body tumbles torque-free with the shape's
 inertia (or --inertia); the parts of an articulated shape follow their joints (Sun-tracking,
-or angles from the file's columns) and their angles are written as joint_<part>_deg. The output is an observation file with mag and mag_err filled and
-the truth columns q1 q2 q3 q4 (inertial→body) and wx wy wz (rad/s) added. Epochs when the
-object is dark, or undetected under --ccd, are dropped and counted in the file's header.
+or angles from the file's columns) and their angles are written as joint_<part>_deg. The
+output is an observation file with mag and mag_err filled and the truth columns q1 q2 q3 q4
+(inertial→body) and wx wy wz (rad/s) added. Epochs when the object is dark, or undetected
+under --ccd, are dropped and counted in the file's header.
 """
 
 from __future__ import annotations
