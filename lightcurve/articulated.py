@@ -141,6 +141,8 @@ class ArticulatedRenderer:
                 r.flux(a, sun, observer) for r, a in zip(self.renderers, attitudes, strict=True)
             )
             return np.asarray(total).reshape(shape)
+        sun, observer = np.array(sun), np.array(observer)  # writable for torch
+        attitudes = [np.array(a) for a in attitudes]
         rotations = np.stack(
             [np.broadcast_to(np.eye(3), (len(q), 3, 3))] * self._has_body
             + [axis_rotation(p.joint.axis, a) for p, a in zip(moving, angles, strict=True)]
