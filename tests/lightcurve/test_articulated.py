@@ -22,7 +22,7 @@ def _cube_and_flap() -> ArticulatedModel:
     """A 1 m cube under a 2 × 2 m flap hinged along x at z = 1.5 m (flap angle from a column)."""
     cube = primitives.box((1.0, 1.0, 1.0))
     flap = primitives.plate(2.0, 2.0)
-    vertices = np.vstack([cube.vertices, flap.vertices + [0.0, 0.0, 1.5]])
+    vertices = np.vstack([cube.vertices, flap.vertices + np.array([0.0, 0.0, 1.5])])
     faces = np.vstack([cube.faces, flap.faces + len(cube.vertices)])
     index = np.concatenate([np.zeros(len(cube.faces)), flap.group_index + 1]).astype(int)
     model = FacetModel(
