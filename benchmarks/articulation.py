@@ -200,10 +200,11 @@ def accuracy(cadence_s: float, points: int) -> dict:
             "array_sun_angle_deg_max_tracking": float(
                 np.max(np.abs(sun_angle - out_of_plane)[~beyond], initial=0.0)
             ),
-            "array_sun_angle_deg_range_beyond": [
-                float(sun_angle[beyond].min(initial=np.inf)),
-                float(sun_angle[beyond].max(initial=-np.inf)),
-            ],
+            "array_sun_angle_deg_range_beyond": (
+                [float(sun_angle[beyond].min()), float(sun_angle[beyond].max())]
+                if beyond.any()
+                else None
+            ),
             "attitude_sim_vs_lvlh_max_deg": float(attitude_deg.max()),
             "simulate_seconds": round(seconds, 3),
         }
