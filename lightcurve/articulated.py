@@ -167,15 +167,22 @@ class ArticulatedRenderer:
 
 
 def _to_body(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``A(q) v`` for rows of quaternions and vectors: ``v − 2 q₄ (q_v × v) + 2 q_v × (q_v × v)``
-    (the attitude core's :func:`~filters.attitude.rotate`, in fewer numpy passes)."""
-    qv = q[:, :3]
-    t = 2.0 * np.cross(qv, v)
-    return v - q[:, 3:] * t + np.cross(qv, t)
+    """``A(q) v`` for rows of quaternions and vectors, by components (the attitude core's
+    :func:`~filters.attitude.rotate`: ``v − 2 q₄ (q_v × v) + 2 q_v × (q_v × v)``, in fewer
+    numpy passes)."""
+    x, y, z, w = q.T
+    vx, vy, vz = v.T
+    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+    out = np.empty(v.shape)
+    out[:, 0] = vx - w * tx + (y * tz - z * ty)
+    out[:, 1] = vy - w * ty + (z * tx - x * tz)
+    out[:, 2] = vz - w * tz + (x * ty - y * tx)
+    return out
 
 
 def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Attitude of a part's frame, ``A(q_g) = R(θ)ᵀ A(q)``: ``q_g = [a sin(θ/2), cos(θ/2)] ⊗ q``.
+    """Attitude of a part's frame, ``A(q_g) = R(θ)ᵀ A(q)``: ``q_g = [a sin(θ/2), cos(θ/2)] ⊗ q``,
+    i.e. ``[c q_v + s (q₄ a − a × q_v), c q₄ − s a·q_v]`` with ``c, s = cos, sin(θ/2)``.
 
     Parameters
     ----------
@@ -186,8 +193,13 @@ def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.nd
     q : (N, 4) float
         Body attitudes (inertial → body).
     """
-    s, c = np.sin(0.5 * angle)[:, None], np.cos(0.5 * angle)[:, None]
-    qv, q4 = q[:, :3], q[:, 3:]
-    vector = c * qv + s * (q4 * axis - np.cross(axis, qv))
-    scalar = c * q4 - s * (qv @ axis)[:, None]
-    return np.concatenate([vector, scalar], axis=1)
+    half = 0.5 * angle
+    s, c = np.sin(half), np.cos(half)
+    x, y, z, w = q.T
+    ax, ay, az = (float(v) for v in axis)
+    out = np.empty(q.shape)
+    out[:, 0] = c * x + s * (w * ax - (ay * z - az * y))
+    out[:, 1] = c * y + s * (w * ay - (az * x - ax * z))
+    out[:, 2] = c * z + s * (w * az - (ax * y - ay * x))
+    out[:, 3] = c * w - s * (ax * x + ay * y + az * z)
+    return out

@@ -226,6 +226,8 @@ class Joint:
         if self.kind == "sun_tracking":
             s = np.asarray(sun_body, float)
             ideal = np.degrees(np.arctan2(s @ np.cross(self.axis, self.normal), s @ self.normal))
+            if self.offset_deg == 0.0 and self.limits_deg == (-180.0, 180.0):
+                return ideal  # already in (−180°, 180°]: wrapping and clipping change nothing
             return self.clip(ideal + self.offset_deg)
         if columns is None or self.column not in columns:
             raise ShapeError(
