@@ -30,10 +30,12 @@ Shadow modes
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from filters.attitude import rotate
 from lightcurve.render import Renderer, flux_to_magnitude
@@ -121,9 +123,7 @@ class ArticulatedRenderer:
         """
         q, sun, observer = (np.asarray(v, float) for v in (q, sun, observer))
         shape = np.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
-        q = np.broadcast_to(q, (*shape, 4)).reshape(-1, 4)
-        sun = np.broadcast_to(sun, (*shape, 3)).reshape(-1, 3)
-        observer = np.broadcast_to(observer, (*shape, 3)).reshape(-1, 3)
+        q, sun, observer = (_rows(v, shape) for v in (q, sun, observer))
         if columns is not None:
             columns = {
                 k: np.broadcast_to(np.asarray(v, float), shape).ravel() for k, v in columns.items()
@@ -166,18 +166,27 @@ class ArticulatedRenderer:
         return flux_to_magnitude(self.flux(q, sun, observer, columns))
 
 
+_JIT = {"error_model": "numpy", "nogil": True, "cache": True}
+
+
 def _to_body(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``A(q) v`` for rows of quaternions and vectors, by components (the attitude core's
-    :func:`~filters.attitude.rotate`: ``v − 2 q₄ (q_v × v) + 2 q_v × (q_v × v)``, in fewer
-    numpy passes)."""
-    x, y, z, w = q.T
-    vx, vy, vz = v.T
-    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+    """``A(q) v`` for rows of quaternions and vectors (the attitude core's
+    :func:`~filters.attitude.rotate`: ``v − 2 q₄ (q_v × v) + 2 q_v × (q_v × v)``), one
+    compiled pass."""
     out = np.empty(v.shape)
-    out[:, 0] = vx - w * tx + (y * tz - z * ty)
-    out[:, 1] = vy - w * ty + (z * tx - x * tz)
-    out[:, 2] = vz - w * tz + (x * ty - y * tx)
+    _to_body_rows(np.ascontiguousarray(q), np.ascontiguousarray(v), out)
     return out
+
+
+@njit(**_JIT)
+def _to_body_rows(q, v, out):  # pragma: no cover - compiled
+    for r in range(q.shape[0]):
+        x, y, z, w = q[r, 0], q[r, 1], q[r, 2], q[r, 3]
+        vx, vy, vz = v[r, 0], v[r, 1], v[r, 2]
+        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+        out[r, 0] = vx - w * tx + (y * tz - z * ty)
+        out[r, 1] = vy - w * ty + (z * tx - x * tz)
+        out[r, 2] = vz - w * tz + (x * ty - y * tx)
 
 
 def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -193,13 +202,25 @@ def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.nd
     q : (N, 4) float
         Body attitudes (inertial → body).
     """
-    half = 0.5 * angle
-    s, c = np.sin(half), np.cos(half)
-    x, y, z, w = q.T
-    ax, ay, az = (float(v) for v in axis)
     out = np.empty(q.shape)
-    out[:, 0] = c * x + s * (w * ax - (ay * z - az * y))
-    out[:, 1] = c * y + s * (w * ay - (az * x - ax * z))
-    out[:, 2] = c * z + s * (w * az - (ax * y - ay * x))
-    out[:, 3] = c * w - s * (ax * x + ay * y + az * z)
+    ax, ay, az = (float(v) for v in axis)
+    _joint_attitude_rows(ax, ay, az, np.ascontiguousarray(angle), np.ascontiguousarray(q), out)
     return out
+
+
+@njit(**_JIT)
+def _joint_attitude_rows(ax, ay, az, angle, q, out):  # pragma: no cover - compiled
+    for r in range(q.shape[0]):
+        s, c = math.sin(0.5 * angle[r]), math.cos(0.5 * angle[r])
+        x, y, z, w = q[r, 0], q[r, 1], q[r, 2], q[r, 3]
+        out[r, 0] = c * x + s * (w * ax - (ay * z - az * y))
+        out[r, 1] = c * y + s * (w * ay - (az * x - ax * z))
+        out[r, 2] = c * z + s * (w * az - (ax * y - ay * x))
+        out[r, 3] = c * w - s * (ax * x + ay * y + az * z)
+
+
+def _rows(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as C-ordered ``(rows, n)`` rows of ``shape``, copied only when broadcast."""
+    if value.shape[:-1] != shape:
+        value = np.broadcast_to(value, (*shape, value.shape[-1])).copy()
+    return np.ascontiguousarray(value.reshape(-1, value.shape[-1]))
