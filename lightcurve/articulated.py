@@ -130,9 +130,7 @@ class ArticulatedRenderer:
             }
         moving = self._moving
         sun_body = _to_body(q, sun)
-        angles = np.radians(
-            [p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in moving]
-        ).reshape(len(moving), len(q))
+        angles = [p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in moving]  # deg
         attitudes = [q] * self._has_body + [
             _joint_attitude(p.joint.axis, a, q) for p, a in zip(moving, angles, strict=True)
         ]
@@ -145,7 +143,10 @@ class ArticulatedRenderer:
         attitudes = [np.array(a) for a in attitudes]
         rotations = np.stack(
             [np.broadcast_to(np.eye(3), (len(q), 3, 3))] * self._has_body
-            + [axis_rotation(p.joint.axis, a) for p, a in zip(moving, angles, strict=True)]
+            + [
+                axis_rotation(p.joint.axis, np.radians(a))
+                for p, a in zip(moving, angles, strict=True)
+            ]
         )
         obs_body = _to_body(q, observer)
         fractions = self._shadows.fractions(
@@ -198,7 +199,7 @@ def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.nd
     axis : (3,) float
         Unit joint axis, body frame.
     angle : (N,) float
-        Joint angles, rad.
+        Joint angles, degrees.
     q : (N, 4) float
         Body attitudes (inertial → body).
     """
@@ -211,7 +212,8 @@ def _joint_attitude(axis: np.ndarray, angle: np.ndarray, q: np.ndarray) -> np.nd
 @njit(**_JIT)
 def _joint_attitude_rows(ax, ay, az, angle, q, out):  # pragma: no cover - compiled
     for r in range(q.shape[0]):
-        s, c = math.sin(0.5 * angle[r]), math.cos(0.5 * angle[r])
+        half = 0.5 * math.radians(angle[r])
+        s, c = math.sin(half), math.cos(half)
         x, y, z, w = q[r, 0], q[r, 1], q[r, 2], q[r, 3]
         out[r, 0] = c * x + s * (w * ax - (ay * z - az * y))
         out[r, 1] = c * y + s * (w * ay - (az * x - ax * z))
