@@ -3,7 +3,10 @@
 :func:`simulate` propagates the attitude from the first epoch of a geometry table with the
 attitude core's DOP853 integrator, renders the magnitudes with
 :class:`~lightcurve.render.Renderer`, adds noise, and returns an observation table with
-``mag``, ``mag_err`` and the truth columns ``q1 q2 q3 q4 wx wy wz`` (rad/s).
+``mag``, ``mag_err`` and the truth columns ``q1 q2 q3 q4 wx wy wz`` (rad/s). An articulated
+shape (:class:`~shapes.articulation.ArticulatedModel`) is rendered by
+:class:`~lightcurve.articulated.ArticulatedRenderer` (scheduled joints read their columns
+from the geometry table) and every part's joint angle is written as ``joint_<part>_deg``.
 
 The noise models (:class:`GaussianNoise`, :class:`CCDNoise`, :class:`ObservingNoise`) live
 in :mod:`lightcurve.noise` and are re-exported here.
@@ -24,6 +27,7 @@ from lightcurve.noise import CCDNoise, GaussianNoise, Measurement, NoiseModel, O
 from lightcurve.observations import TRUTH_COLUMNS, Observations, validate_table
 from lightcurve.render import Renderer
 from shapes import FacetModel
+from shapes.articulation import ArticulatedModel
 
 __all__ = [
     "CCDNoise",
@@ -92,7 +96,7 @@ def truth_states(
 
 def simulate(
     geometry: Observations,
-    shape: FacetModel,
+    shape: FacetModel | ArticulatedModel,
     q0: np.ndarray,
     omega0: np.ndarray,
     inertia: np.ndarray | None = None,
@@ -106,8 +110,8 @@ def simulate(
     ----------
     geometry : Observations
         Epochs and Sun/observer vectors (``mag`` columns, if any, are replaced).
-    shape : FacetModel
-        Shape with materials.
+    shape : FacetModel or ArticulatedModel
+        Shape with materials (and parts).
     q0 : (4,) array
         Attitude at the first epoch (inertial → body).
     omega0 : (3,) array
@@ -130,8 +134,25 @@ def simulate(
     rng = np.random.default_rng(seed)
     inertia = shape.inertia if inertia is None else np.asarray(inertia, float)
     states = truth_states(geometry.times, q0, omega0, inertia)
-    renderer = Renderer(shape, shadows=shadows)
-    magnitude = renderer.magnitude(states[:, :4], geometry.sun_vectors, geometry.observer_vectors)
+    joints = {}
+    if isinstance(shape, ArticulatedModel):
+        from lightcurve.articulated import ArticulatedRenderer
+
+        renderer = ArticulatedRenderer(shape, shadows=shadows)
+        columns = {
+            p.joint.column: geometry.table[p.joint.column].to_numpy(float)
+            for p in shape.articulation.parts
+            if p.joint.column is not None and p.joint.column in geometry.table
+        }
+        args = (states[:, :4], geometry.sun_vectors, geometry.observer_vectors)
+        magnitude = renderer.magnitude(*args, columns)
+        angles = renderer.joint_angles(args[0], args[1], columns)
+        joints = dict(zip(shape.articulation.names, angles, strict=True))
+    else:
+        renderer = Renderer(shape, shadows=shadows)
+        magnitude = renderer.magnitude(
+            states[:, :4], geometry.sun_vectors, geometry.observer_vectors
+        )
     dark = ~np.isfinite(magnitude)
     if noise is None:
         measurement = Measurement(magnitude, np.full_like(magnitude, 1e-6))
@@ -150,6 +171,8 @@ def simulate(
         table[name] = np.asarray(values)[keep]
     for k, column in enumerate(TRUTH_COLUMNS):
         table[column] = states[keep, k]
+    for part, angle in joints.items():
+        table[f"joint_{part}_deg"] = angle[keep]
     meta = dict(geometry.meta)
     meta.update(
         {

@@ -57,6 +57,31 @@ _PRIMITIVES = {
     ),
 }
 
+#: Articulated entries: (builder, options, parts, description).
+_ARTICULATED = {
+    "box_wing_tracking": (
+        lambda: primitives.box_wing(name="box_wing_tracking"),
+        {},
+        [
+            {
+                "name": "arrays",
+                "groups": ["solar_array", "array_back", "yoke"],
+                "joint": {
+                    "kind": "sun_tracking",
+                    "axis": [0.0, 1.0, 0.0],
+                    "pivot": [0.0, 0.0, 0.0],
+                    "normal": [1.0, 0.0, 0.0],
+                    "limits_deg": [-180.0, 180.0],
+                    "offset_deg": 0.0,
+                },
+            }
+        ],
+        "GEO box-wing (as box_wing) whose arrays and yokes turn about the wing axis y to "
+        "track the Sun (continuous drive, cell-side normal +x at angle 0); fly it with body y "
+        "along the orbit normal (nadir or Sun pointing)",
+    ),
+}
+
 _ASTEROIDS = {
     "itokawa": (
         "itokawa_8.obj",
@@ -89,7 +114,7 @@ def build_builtin_library(
     """
     library = ShapeLibrary(out or builtin_library_path())
     library.path.mkdir(parents=True, exist_ok=True)
-    wanted = set(names) if names else set(_PRIMITIVES) | set(_ASTEROIDS)
+    wanted = set(names) if names else set(_PRIMITIVES) | set(_ASTEROIDS) | set(_ARTICULATED)
     for name, (build, options, description) in _PRIMITIVES.items():
         if name not in wanted:
             continue
@@ -102,6 +127,20 @@ def build_builtin_library(
             provenance={"description": description, "license": _OWN},
             force=True,
             samples=256,
+        )
+    for name, (build, options, parts, description) in _ARTICULATED.items():
+        if name not in wanted:
+            continue
+        model = build()
+        if options:
+            model = model.replace(**options)
+        library.add_model(
+            name,
+            model,
+            provenance={"description": description, "license": _OWN},
+            force=True,
+            samples=256,
+            parts=parts,
         )
     for name, (filename, mass, description) in _ASTEROIDS.items():
         if name not in wanted:

@@ -18,7 +18,14 @@ Layout::
         "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
                     "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
         "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
-        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...}}}}
+        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
+        "parts"?: [{"name": str, "groups": [str, ...],
+                    "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
+
+``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
+each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
+when loaded; :meth:`ShapeLibrary.load` with ``articulated=True`` returns an
+:class:`~shapes.articulation.ArticulatedModel`.
 
 For ``"given"`` inertia the tensor and centre of mass are used as stored; for ``"solid"`` and
 ``"shell"`` they are recomputed from the mesh (uniform density, scaled to ``mass`` when
@@ -42,6 +49,7 @@ from typing import Any
 import numpy as np
 from filelock import FileLock
 
+from shapes.articulation import ArticulatedModel, Articulation
 from shapes.errors import ShapeError
 from shapes.files import atomic_write, file_sha256, temp_path
 from shapes.io import load as load_mesh
@@ -165,9 +173,23 @@ class ShapeLibrary:
             raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
         return json.loads(json.dumps(shapes[name]))
 
+    def articulation(self, name: str) -> Articulation | None:
+        """The validated parts of an articulated shape, or None for a rigid one."""
+        entry = self.info(check_name(name))
+        if "parts" not in entry:
+            return None
+        return Articulation.from_list(
+            entry["parts"], entry.get("groups", []), f"{self.manifest_path}: shape {name!r}"
+        )
+
     def load(
-        self, name: str, *, build_visibility: bool = True, visibility: bool = True
-    ) -> FacetModel:
+        self,
+        name: str,
+        *,
+        build_visibility: bool = True,
+        visibility: bool = True,
+        articulated: bool = False,
+    ) -> FacetModel | ArticulatedModel:
         """Load a shape with its materials, inertia and visibility table.
 
         Parameters
@@ -179,6 +201,10 @@ class ShapeLibrary:
         visibility : bool
             Attach the visibility table (stored or built). False skips reading, checking and
             building it: for renderers without self-shadowing (``shadows="none"``).
+        articulated : bool
+            For a shape with ``parts``, return an
+            :class:`~shapes.articulation.ArticulatedModel` (its rigid model at joint angle 0
+            otherwise, the form every rigid consumer reads).
 
         Raises
         ------
@@ -188,6 +214,10 @@ class ShapeLibrary:
         """
         entry = self.info(check_name(name))
         where = f"{self.manifest_path}: shape {name!r}"
+        if articulated:
+            parts = self.articulation(name)
+            model = self.load(name, build_visibility=build_visibility, visibility=visibility)
+            return model if parts is None else ArticulatedModel(model, parts)
         mesh_path = self.path / self._field(entry, "mesh", str, where)
         if not mesh_path.is_file():
             raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
@@ -243,6 +273,7 @@ class ShapeLibrary:
     def validate(self, name: str) -> FacetModel:
         """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
         model = self.load(name, build_visibility=False)
+        self.articulation(name)  # parts, when present, must fit the mesh groups
         try:
             validate(model)
         except ShapeError as exc:
@@ -282,6 +313,7 @@ class ShapeLibrary:
         provenance: Mapping[str, Any] | None = None,
         force: bool = False,
         keep_file: bool = False,
+        parts: Any = None,
         resolution: int = DEFAULT_RESOLUTION,
         samples: int = DEFAULT_SAMPLES,
         progress: bool = False,
@@ -303,6 +335,9 @@ class ShapeLibrary:
         keep_file : bool
             Copy the mesh file verbatim instead of writing it as a grouped OBJ (only for
             self-contained files: no MTL or texture side files).
+        parts : list of dict or Articulation, optional
+            Articulated parts (:mod:`shapes.articulation`), checked against the mesh groups
+            before anything is written.
         resolution, samples, progress :
             Visibility-table parameters for non-convex shapes (``progress``: a tqdm bar).
 
@@ -316,9 +351,11 @@ class ShapeLibrary:
         mesh = Path(mesh)
         self._check_free(name, force)
         model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
+        articulation = _articulation(parts, model, name, mesh)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
         table_options = {"resolution": resolution, "samples": samples, "progress": progress}
-        return self._commit(name, model, record, force, mesh if keep_file else None, table_options)
+        verbatim = mesh if keep_file else None
+        return self._commit(name, model, record, force, verbatim, table_options, articulation)
 
     def add_model(
         self,
@@ -329,15 +366,20 @@ class ShapeLibrary:
         force: bool = False,
         resolution: int = DEFAULT_RESOLUTION,
         samples: int = DEFAULT_SAMPLES,
+        parts: Any = None,
     ) -> FacetModel:
-        """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ."""
+        """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ.
+
+        ``parts`` as in :meth:`add`.
+        """
         self._check_writable()
         check_name(name)
         self._check_free(name, force)
         validate(model)
+        articulation = _articulation(parts, model, name, None)
         record = {**model.provenance, **dict(provenance or {})}
         table_options = {"resolution": resolution, "samples": samples}
-        return self._commit(name, model, record, force, None, table_options)
+        return self._commit(name, model, record, force, None, table_options, articulation)
 
     def _check_free(self, name: str, force: bool) -> None:
         if not force and name in self._read_manifest()["shapes"]:
@@ -353,6 +395,7 @@ class ShapeLibrary:
         force: bool,
         verbatim: Path | None,
         table_options: dict[str, Any],
+        articulation: Articulation | None = None,
     ) -> FacetModel:
         """Write mesh (+ table) under temporary names, then swap them in under the lock."""
         self.path.mkdir(parents=True, exist_ok=True)
@@ -383,6 +426,8 @@ class ShapeLibrary:
                 table.save(staged["visibility"])
                 stored = stored.with_visibility(table)
             entry = self._entry(name, stored, final, staged, provenance)
+            if articulation is not None:
+                entry["parts"] = articulation.to_list()
             with self._locked() as manifest:
                 if name in manifest["shapes"] and not force:
                     raise ShapeError(f"shape {name!r} already exists in library {self.path}")
@@ -492,3 +537,15 @@ class ShapeLibrary:
             for key in ("mesh", "visibility"):
                 if entry.get(key):
                     (self.path / entry[key]).unlink(missing_ok=True)
+
+
+def _articulation(
+    parts: Any, model: FacetModel, name: str, mesh: Path | None
+) -> Articulation | None:
+    """``parts`` validated against the model's groups (None when not given)."""
+    if parts is None or isinstance(parts, Articulation):
+        if parts is not None:
+            Articulation.from_list(parts.to_list(), model.group_names, f"shape {name!r}")
+        return parts
+    where = f"shape {name!r}" + (f" ({mesh})" if mesh is not None else "")
+    return Articulation.from_list(parts, model.group_names, where)

@@ -7,6 +7,7 @@ library shipped with the project (read-only). See docs/shapes.md for the manifes
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Sequence
@@ -16,6 +17,7 @@ import numpy as np
 
 import brdf
 import shapes
+from shapes.articulation import ArticulatedModel, axis_rotation
 from shapes.library import LibraryReadOnlyError
 
 NAME = "shapes"
@@ -86,6 +88,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--mass", type=float, help="mass, kg (scales a computed inertia)")
     p.add_argument("--source", help="provenance: where the mesh comes from")
     p.add_argument("--license", help="provenance: licence of the mesh")
+    p.add_argument(
+        "--parts",
+        metavar="PARTS.json",
+        help="articulated parts: a JSON list of {name, groups, joint} (docs/shapes.md)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing shape")
     p = action("remove", "remove a shape")
     p.add_argument("name")
@@ -99,6 +106,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="1,-1,0.6",
         metavar="x,y,z",
         help="direction toward the viewer, body frame (default 1,-1,0.6)",
+    )
+    p.add_argument(
+        "--sun",
+        metavar="x,y,z",
+        help="articulated shapes: body-frame Sun direction that poses the Sun-tracking parts "
+        "(default: every joint at angle 0)",
+    )
+    p.add_argument(
+        "--angle",
+        metavar="PART=DEG",
+        action="append",
+        default=[],
+        help="articulated shapes: joint angle of a part, degrees (repeatable)",
     )
 
 
@@ -170,9 +190,45 @@ def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     print(f"  principal moments: {np.array2string(model.principal_moments, precision=6)} kg m²")
     print("  principal axes (columns):")
     print(_matrix(model.principal_axes))
+    articulation = library.articulation(args.name)
+    if articulation is not None:
+        print(
+            f"  parts: {len(articulation.parts)} (articulated; unnamed groups move with the body)"
+        )
+        for part in articulation.parts:
+            print(f"    {part.name}: groups {', '.join(part.groups)}; {_joint_text(part.joint)}")
     for key, value in entry.get("provenance", {}).items():
         print(f"  {key}: {value}")
     return 0
+
+
+def _joint_text(joint: Any) -> str:
+    """One line describing a joint."""
+    if joint.kind == "fixed":
+        return "fixed joint"
+
+    def vec(v: np.ndarray) -> str:
+        return "[" + ", ".join(f"{x:g}" for x in v) + "]"
+
+    low, high = joint.limits_deg
+    text = (
+        f"{joint.kind} joint about {vec(joint.axis)} through {vec(joint.pivot)} m, "
+        f"limits [{low:g}, {high:g}] deg, offset {joint.offset_deg:g} deg"
+    )
+    if joint.normal is not None:
+        text += f", normal {vec(joint.normal)}"
+    if joint.column is not None:
+        text += f", angle from column {joint.column!r}"
+    return text
+
+
+def _read_parts(path: str) -> Any:
+    """The JSON list of parts of ``shapes add --parts``."""
+    try:
+        with open(path, encoding="utf-8") as handle:
+            return json.load(handle)
+    except (OSError, json.JSONDecodeError) as exc:
+        raise shapes.ShapeError(f"--parts {path}: unreadable JSON ({exc})") from None
 
 
 def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
@@ -193,11 +249,13 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         provenance=provenance,
         force=args.force,
         progress=sys.stderr.isatty(),
+        parts=_read_parts(args.parts) if args.parts else None,
     )
     print(
         f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
         f"groups {', '.join(model.group_names)}, inertia {model.inertia_source}"
         + (", visibility table built" if model.visibility is not None else "")
+        + (", parts " + ", ".join(library.articulation(args.name).names) if args.parts else "")
     )
     return 0
 
@@ -228,10 +286,51 @@ def _render(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     from shapes.preview import render_preview
 
     view = _floats(args.view, "--view", (3,))
-    model = library.load(args.name, build_visibility=False)
+    model = library.load(args.name, build_visibility=False, articulated=True)
+    if isinstance(model, ArticulatedModel):
+        model = _pose(model, args)
+    elif args.sun or args.angle:
+        raise shapes.ShapeError(f"--sun/--angle: shape {args.name!r} has no articulated parts")
     render_preview(model, args.out, view)
     print(f"wrote {args.out}")
     return 0
+
+
+def _pose(model: ArticulatedModel, args: argparse.Namespace) -> shapes.FacetModel:
+    """The shape with its moving parts turned per --sun and --angle."""
+    moving = model.articulation.moving
+    angles = np.zeros(len(moving))
+    if args.sun:
+        sun = np.asarray(_floats(args.sun, "--sun", (3,)))
+        for k, part in enumerate(moving):
+            if part.joint.kind == "sun_tracking":
+                angles[k] = part.joint.angles(sun, None, f"part {part.name!r}")
+    names = [p.name for p in moving]
+    for item in args.angle:
+        name, _, value = item.partition("=")
+        if name not in names:
+            raise shapes.ShapeError(
+                f"--angle {item!r}: no moving part {name!r} (moving parts: {', '.join(names)})"
+            )
+        joint = moving[names.index(name)].joint
+        angle = _floats(value, f"--angle {name}", (1,))[0]
+        low, high = joint.limits_deg
+        if not low <= angle <= high:
+            raise shapes.ShapeError(
+                f"--angle {name}: {angle:g} deg is outside the joint limits [{low:g}, {high:g}]"
+            )
+        angles[names.index(name)] = angle
+    rotations = (
+        np.stack(
+            [
+                axis_rotation(p.joint.axis, np.radians(a))
+                for p, a in zip(moving, angles, strict=True)
+            ]
+        )
+        if moving
+        else np.zeros((0, 3, 3))
+    )
+    return model.posed(rotations)
 
 
 _ACTIONS: dict[str, Any] = {

@@ -2,10 +2,11 @@
 
 GEOMETRY is an observation file (CSV, Parquet) whose mag columns may be absent. The attitude
 --q0/--omega0 holds at its first epoch; the body tumbles torque-free with the shape's
-inertia (or --inertia). The output is an observation file with mag and mag_err filled and
-the truth columns q1 q2 q3 q4 (inertial→body) and wx wy wz (rad/s) added. Epochs when the
-object is dark, or undetected under --ccd or --conditions, are dropped and counted in the
-file's header.
+inertia (or --inertia); the parts of an articulated shape follow their joints (Sun-tracking,
+or angles from the file's columns) and their angles are written as joint_<part>_deg. The
+output is an observation file with mag and mag_err filled and the truth columns q1 q2 q3 q4
+(inertial→body) and wx wy wz (rad/s) added. Epochs when the object is dark, or undetected
+under --ccd or --conditions, are dropped and counted in the file's header.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
@@ -106,7 +107,9 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 
 def run(args: argparse.Namespace) -> int:
     geometry = io.read(args.geometry, require_magnitudes=False)
-    shape = get_library(args.library).load(args.shape, visibility=args.shadows != "none")
+    shape = get_library(args.library).load(
+        args.shape, visibility=args.shadows != "none", articulated=True
+    )
     if args.condition and (args.noise_mag is not None or args.ccd is not None):
         raise ValueError("--condition goes with --conditions (or alone), not --noise-mag/--ccd")
     if args.noise_mag is not None:

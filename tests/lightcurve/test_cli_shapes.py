@@ -161,9 +161,10 @@ def test_environment_selects_the_library(tmp_path, capsys, monkeypatch, mesh_fil
 def test_validate_passes_on_every_builtin_shape(capsys):
     code, out, err = _run(capsys, "validate")
     assert code == 0, err
-    for name in ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing", "itokawa", "bennu"):
+    builtin = ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing", "box_wing_tracking")
+    for name in (*builtin, "itokawa", "bennu"):
         assert f"ok {name}:" in out
-    assert "8 of 8 shapes valid" in out
+    assert "9 of 9 shapes valid" in out
 
 
 def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file):

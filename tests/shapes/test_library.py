@@ -11,7 +11,17 @@ from shapes import primitives
 from shapes.files import file_sha256
 from shapes.library import LibraryReadOnlyError, ShapeLibrary, builtin_library_path, check_name
 
-BUILTIN = ["bennu", "box", "box_wing", "cube", "cylinder", "itokawa", "plate", "rocket_body"]
+BUILTIN = [
+    "bennu",
+    "box",
+    "box_wing",
+    "box_wing_tracking",
+    "cube",
+    "cylinder",
+    "itokawa",
+    "plate",
+    "rocket_body",
+]
 
 
 def _snapshot(folder):
