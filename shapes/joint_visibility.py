@@ -208,14 +208,69 @@ def joint_rows(
         cl, a0, a1, a2, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
         cv, b0, b1, b2, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
         for c in range(chunks):
-            todo = (cell_partial[cl, c] | cell_partial[cv, c]) & cell_front[cl, c]
-            todo &= cell_front[cv, c]
+            front = cell_front[cl, c] & cell_front[cv, c]
+            partial_l = cell_partial[cl, c] & front
+            partial_v = cell_partial[cv, c] & front
+            # partly shadowed around L only: every point sees V's corners, J = lit fraction
+            _one_sided(
+                lx,
+                ly,
+                lz,
+                vx,
+                vy,
+                vz,
+                c,
+                partial_l & ~partial_v,
+                a0,
+                a1,
+                a2,
+                wa0,
+                wa1,
+                wa2,
+                row_words,
+                row_rank,
+                compact,
+                normals,
+                segment_start,
+                segment_word,
+                segment_mask,
+                segment_weight,
+                facing,
+                out,
+                r,
+            )
+            _one_sided(
+                lx,
+                ly,
+                lz,
+                vx,
+                vy,
+                vz,
+                c,
+                partial_v & ~partial_l,
+                b0,
+                b1,
+                b2,
+                wb0,
+                wb1,
+                wb2,
+                row_words,
+                row_rank,
+                compact,
+                normals,
+                segment_start,
+                segment_word,
+                segment_mask,
+                segment_weight,
+                facing,
+                out,
+                r,
+            )
+            todo = partial_l & partial_v
             while todo != 0:
                 k = c * 64 + np.int64(_trailing_zeros(todo))
                 todo &= todo - np.uint64(1)
-                nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
-                nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
-                if nl <= 0.0 or nv <= 0.0:
+                if facing and not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
                     continue
                 total = 0.0
                 for s in range(segment_start[k], segment_start[k + 1]):
@@ -234,6 +289,61 @@ def joint_rows(
                         + wa2 * (wb0 * p20 + wb1 * p21 + wb2 * p22)
                     )
                 out[r, k] = total
+
+
+@njit(**_JIT)
+def _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
+    """Facet ``k`` faces both ``L`` and ``V``."""
+    nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
+    nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
+    return nl > 0.0 and nv > 0.0
+
+
+@njit(**_JIT)
+def _one_sided(
+    lx,
+    ly,
+    lz,
+    vx,
+    vy,
+    vz,
+    c,
+    todo,
+    d0,
+    d1,
+    d2,
+    w0,
+    w1,
+    w2,
+    row_words,
+    row_rank,
+    compact,
+    normals,
+    segment_start,
+    segment_word,
+    segment_mask,
+    segment_weight,
+    facing,
+    out,
+    r,
+):
+    """Facets ``todo`` of chunk ``c`` whose points all see the other direction's three grid
+    nodes: the joint fraction is the fraction interpolated over nodes ``d0, d1, d2`` (three
+    words per segment instead of six)."""
+    while todo != 0:
+        k = c * 64 + np.int64(_trailing_zeros(todo))
+        todo &= todo - np.uint64(1)
+        if facing and not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
+            continue
+        total = 0.0
+        for s in range(segment_start[k], segment_start[k + 1]):
+            w, m = segment_word[s], segment_mask[s]
+            total += segment_weight[s] * (
+                w0 * float(_popcount(_word(row_words, row_rank, compact, d0, w) & m))
+                + w1 * float(_popcount(_word(row_words, row_rank, compact, d1, w) & m))
+                + w2 * float(_popcount(_word(row_words, row_rank, compact, d2, w) & m))
+            )
+        out[r, k] = total
 
 
 @njit(**_JIT)
