@@ -1,17 +1,21 @@
-"""Shape benchmarks: visibility-table build time vs facet count, coplanar-merge reduction,
-table accuracy against ray casting, and table interpolation throughput.
+"""Shape benchmarks: visibility-table build time and memory vs facet count, coplanar-merge
+reduction, table accuracy against ray casting, lookup throughput, and rendering speed with
+tables against rendering without shadows.
 
-Run ``python benchmarks/shapes.py [--quick] [--sections build,merge,accuracy,interpolation]``;
-prints one JSON document. ``--quick`` uses smaller grids and fewer directions (a smoke run);
-the default reproduces the figures of docs/shapes.md (about 10 minutes on one core, most of it
-the 5120-facet table build). Seed 20261122 for every random draw.
+Run ``python benchmarks/shapes.py [--quick] [--sections build,merge,accuracy,lookup,render]``;
+prints one JSON document with the machine and its load. ``--quick`` uses smaller grids and
+fewer directions (a smoke run); the default reproduces the figures of docs/shapes.md (about
+15 minutes on one core, most of it the 5120-facet table build). Seed 20261122 for every
+random draw.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,9 +28,11 @@ import torch  # noqa: E402
 
 import shapes  # noqa: E402
 from benchmarks._machine import machine_info  # noqa: E402
+from filters.attitude import random_quaternion  # noqa: E402
+from lightcurve.render import Renderer  # noqa: E402
 from shapes import primitives  # noqa: E402
 from shapes.raycast import has_embree  # noqa: E402
-from shapes.visibility import DEFAULT_RESOLUTION, DEFAULT_SAMPLES  # noqa: E402
+from shapes.visibility import DEFAULT_RESOLUTION, DEFAULT_SAMPLES, DEFAULT_SPACING  # noqa: E402
 
 SEED = 20261122
 
@@ -42,6 +48,7 @@ def bumpy_sphere(subdivisions: int) -> shapes.FacetModel:
 
 
 def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
+    """Build time, rays, in-memory size and file size of the tables (default sampling)."""
     library = shapes.get_library(shapes.builtin_library_path())
     models = [bumpy_sphere(s) for s in sizes] + [library.load(n) for n in ("itokawa", "bennu")]
     rows = []
@@ -51,7 +58,11 @@ def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
         start = time.perf_counter()
         table = shapes.build_visibility_table(compiled, resolution=resolution, samples=samples)
         seconds = time.perf_counter() - start
-        rays = len(table.grid) * shadowable * samples  # approximately (rounded subdivisions)
+        rays = len(table.grid) * table.n_points
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / "table.visibility.npz"
+            table.save(path)
+            file_bytes = path.stat().st_size
         rows.append(
             {
                 "shape": model.name,
@@ -60,9 +71,14 @@ def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
                 "shadowable_facets": shadowable,
                 "directions": len(table.grid),
                 "samples_per_facet": samples,
+                "spacing": DEFAULT_SPACING,
+                "sample_points": table.n_points,
                 "rays": rays,
                 "seconds": round(seconds, 2),
                 "mrays_per_s": round(rays / seconds / 1e6, 2),
+                "bits_mib": round(table.bits.nbytes / 2**20, 2),
+                "memory_mib": round(table.nbytes / 2**20, 2),
+                "file_mib": round(file_bytes / 2**20, 2),
             }
         )
     return rows
@@ -88,71 +104,154 @@ def merge_reduction() -> list[dict]:
 
 
 def table_accuracy(n_directions: int) -> list[dict]:
+    """Table lookups against ray casting with the table's own sampling: the visible fraction
+    of one direction and the joint (lit and seen) fraction of pairs at phase angles 0–120°."""
     library = shapes.get_library(shapes.builtin_library_path())
     rng = np.random.default_rng(SEED)
-    d = rng.normal(size=(n_directions, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = _unit(rng.normal(size=(n_directions, 3)))
+    axis = _unit(np.cross(d, rng.normal(size=d.shape)))
+    phase = np.radians(rng.uniform(0.0, 120.0, n_directions))[:, None]
+    view = d * np.cos(phase) + np.cross(axis, d) * np.sin(phase)
     rows = []
     for name in ("box_wing", "itokawa"):
         compiled = library.load(name).compiled()
         table = compiled.visibility
         start = time.perf_counter()
-        exact = shapes.visible_fraction(compiled, d, samples=table.samples)
+        exact = shapes.visible_fraction(compiled, d)
         seconds = time.perf_counter() - start
         error = np.abs(table.interpolate(d) - exact)
-        relevant = (d @ compiled.normals.T > 0) & compiled.can_be_shadowed
-        e = error[relevant]
+        front = d @ compiled.normals.T > 0
+        relevant = front & compiled.can_be_shadowed
+        start = time.perf_counter()
+        joint_exact = shapes.joint_visible_fraction(compiled, d, view)
+        joint_seconds = time.perf_counter() - start
+        joint_error = np.abs(table.joint(d, view) - joint_exact)
+        both = front & (view @ compiled.normals.T > 0) & compiled.can_be_shadowed
         rows.append(
             {
                 "shape": name,
                 "directions": n_directions,
                 "seed": SEED,
                 "samples_per_facet": table.samples,
+                "sample_points": table.n_points,
                 "pairs_compared": int(relevant.sum()),
-                "mean_abs_error": round(float(e.mean()), 5),
-                "p99_abs_error": round(float(np.quantile(e, 0.99)), 4),
-                "max_abs_error": round(float(e.max()), 4),
-                "mean_abs_error_all_front_facing": round(
-                    float(error[d @ compiled.normals.T > 0].mean()), 5
-                ),
+                "mean_abs_error": round(float(error[relevant].mean()), 5),
+                "p99_abs_error": round(float(np.quantile(error[relevant], 0.99)), 4),
+                "max_abs_error": round(float(error[relevant].max()), 4),
+                "mean_abs_error_all_front_facing": round(float(error[front].mean()), 5),
                 "exact_ray_casting_seconds": round(seconds, 2),
+                "joint_pairs_compared": int(both.sum()),
+                "joint_mean_abs_error": round(float(joint_error[both].mean()), 5),
+                "joint_p99_abs_error": round(float(np.quantile(joint_error[both], 0.99)), 4),
+                "joint_max_abs_error": round(float(joint_error[both].max()), 4),
+                "joint_exact_ray_casting_seconds": round(joint_seconds, 2),
             }
         )
     return rows
 
 
-def interpolation_throughput(chunk: int, repeats: int) -> list[dict]:
-    """Best-of-``repeats`` time of one renderer-sized chunk of directions (Itokawa, K = 768)."""
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _best(func, repeats: int) -> float:
+    """Best of ``repeats`` wall times of ``func()`` (the machine is shared), s."""
+    seconds = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        func()
+        seconds = min(seconds, time.perf_counter() - start)
+    return seconds
+
+
+def lookup_throughput(chunk: int, repeats: int) -> list[dict]:
+    """Best-of-``repeats`` time of the joint lookup of one chunk of random ``(L, V)`` pairs
+    (Itokawa, K = 768): numpy (compiled kernel) and torch (differentiable)."""
     library = shapes.get_library(shapes.builtin_library_path())
     table = library.load("itokawa").compiled().visibility
-    d = np.random.default_rng(SEED).normal(size=(chunk, 3))
+    rng = np.random.default_rng(SEED)
+    light, view = _unit(rng.normal(size=(chunk, 3))), _unit(rng.normal(size=(chunk, 3)))
     rows = []
-    cases = [("numpy", "float32", None), ("numpy", "float64", None)]
-    cases += [("torch", "float32", 1), ("torch", "float32", torch.get_num_threads())]
-    for kind, dtype, threads in cases:
-        x = d.astype(dtype) if kind == "numpy" else torch.as_tensor(d, dtype=getattr(torch, dtype))
-        saved = torch.get_num_threads()
-        if threads:
-            torch.set_num_threads(threads)
-        table.interpolate(x[:10])  # warm the caches
-        seconds = np.inf
-        for _ in range(repeats):  # best of several: the machine is shared
-            start = time.perf_counter()
-            table.interpolate(x)
-            seconds = min(seconds, time.perf_counter() - start)
-        torch.set_num_threads(saved)
+    for kind, dtype in (("numpy", "float32"), ("numpy", "float64"), ("torch", "float64")):
+        if kind == "numpy":
+            args = (light.astype(dtype), view.astype(dtype))
+        else:
+            args = tuple(torch.as_tensor(v, dtype=getattr(torch, dtype)) for v in (light, view))
+        table.joint(args[0][:10], args[1][:10])  # compile or load the kernels
+        seconds = _best(lambda args=args: table.joint(*args), repeats)
         rows.append(
             {
                 "array": kind,
                 "dtype": dtype,
-                "torch_threads": threads,
-                "directions": chunk,
+                "pairs": chunk,
                 "facets": table.n_facets,
                 "milliseconds": round(1e3 * seconds, 2),
-                "m_facet_directions_per_s": round(chunk * table.n_facets / seconds / 1e6, 1),
+                "m_facet_pairs_per_s": round(chunk * table.n_facets / seconds / 1e6, 1),
             }
         )
     return rows
+
+
+def _light_curve(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A pass of a tumbling object: 120 s spin about a fixed (seeded) axis, 0.5 s cadence,
+    the phase angle sweeping from 10° to 90°; returns ``q, sun, observer``."""
+    rng = np.random.default_rng(SEED)
+    axis = _unit(rng.normal(size=3))
+    t = 0.5 * np.arange(n)
+    angle = 2.0 * np.pi * t / 120.0
+    q = np.column_stack([np.outer(np.sin(angle / 2), axis), np.cos(angle / 2)])
+    sun = np.tile([1.496e11, 0.0, 0.0], (n, 1))
+    phase = np.radians(np.linspace(10.0, 90.0, n))
+    observer = 4e7 * np.column_stack([np.cos(phase), np.sin(phase), np.zeros(n)])
+    return q, sun, observer
+
+
+def render_speed(epochs: int, repeats: int) -> list[dict]:
+    """``Renderer(shadows="table")`` against ``"none"`` on the same epochs, measured in
+    alternation (best of ``repeats`` rounds), for random attitudes (every epoch in other
+    grid cells: the worst case for the lookup's caches) and a light curve."""
+    library = shapes.get_library(shapes.builtin_library_path())
+    rng = np.random.default_rng(SEED)
+    observer = 4e7 * _unit(rng.normal(size=(epochs, 3)))
+    workloads = {
+        "random_attitudes": (
+            random_quaternion(epochs, rng),
+            np.tile([1.496e11, 0.0, 0.0], (epochs, 1)),
+            observer,
+        ),
+        "light_curve": _light_curve(epochs),
+    }
+    rows = []
+    for name in ("box_wing", "itokawa", "bennu"):
+        shape = library.load(name)
+        for dtype in (torch.float64, torch.float32):
+            renderers = {mode: Renderer(shape, shadows=mode, dtype=dtype) for mode in MODES}
+            for workload, (q, sun, obs) in workloads.items():
+                seconds = dict.fromkeys(MODES, np.inf)
+                for renderer in renderers.values():
+                    renderer.flux(q[:10], sun[:10], obs[:10])  # compile or load the kernels
+                for _ in range(repeats):
+                    for mode, renderer in renderers.items():
+                        seconds[mode] = min(
+                            seconds[mode], _best(lambda r=renderer, g=(q, sun, obs): r.flux(*g), 1)
+                        )
+                rows.append(
+                    {
+                        "shape": name,
+                        "facets": len(shape.compiled()),
+                        "dtype": str(dtype).removeprefix("torch."),
+                        "workload": workload,
+                        "epochs": epochs,
+                        "none_ms": round(1e3 * seconds["none"], 1),
+                        "table_ms": round(1e3 * seconds["table"], 1),
+                        "table_over_none": round(seconds["table"] / seconds["none"], 2),
+                    }
+                )
+                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    return rows
+
+
+MODES = ("none", "table")
 
 
 def main() -> None:
@@ -160,8 +259,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small grids, few directions")
     parser.add_argument(
         "--sections",
-        default="build,merge,accuracy,interpolation",
-        help="comma-separated subset of build, merge, accuracy, interpolation",
+        default="build,merge,accuracy,lookup,render",
+        help="comma-separated subset of build, merge, accuracy, lookup, render",
     )
     args = parser.parse_args()
     sections = set(args.sections.split(","))
@@ -176,8 +275,13 @@ def main() -> None:
         result["merge_reduction"] = merge_reduction()
     if "accuracy" in sections:
         result["table_accuracy"] = table_accuracy(200 if args.quick else 1000)
-    if "interpolation" in sections:
-        result["interpolation"] = interpolation_throughput(4096, 3 if args.quick else 10)
+    if "lookup" in sections:
+        result["joint_lookup"] = lookup_throughput(4096, 3 if args.quick else 10)
+    if "render" in sections:
+        result["render_speed"] = render_speed(
+            1000 if args.quick else 10_000, 3 if args.quick else 7
+        )
+    result["load_average"] = os.getloadavg()
     print(json.dumps(result, indent=2))
 
 

@@ -45,7 +45,7 @@ import numpy as np
 import brdf
 from filters.attitude import rotate
 from lightcurve.geometry import AU_M
-from shapes import CompiledFacets, FacetModel, visible_fraction
+from shapes import CompiledFacets, FacetModel, joint_visible_fraction
 
 if TYPE_CHECKING:
     import torch
@@ -72,6 +72,9 @@ _CHUNK_ELEMENTS = 65536
 _RECOMPILE_LIMIT = 64
 # Rows × facets of one shadow-factor array on the fused path (16 MiB in float64).
 _SHADOW_ELEMENTS = 1 << 21
+# Rows × facets of one table shadow-factor block (512 KiB in float64): written by the table
+# lookup and read by the facet sums while it is still in the core's L2 cache.
+_TABLE_BLOCK_ELEMENTS = 1 << 16
 
 
 def flux_to_magnitude(flux: Any) -> Any:
@@ -390,7 +393,20 @@ class Renderer:
         )
         if self.shadows == "none":
             sums = fused.sums(light, view)
-        else:  # shadow factors for blocks of rows, to bound the (rows × facets) array
+        elif self.shadows == "table":  # cache-sized blocks: the factor stays in L2
+            from lightcurve.kernels.threads import run_rows
+
+            sums = np.empty(len(light), dtype=fused.dtype)
+            step = max(1, _TABLE_BLOCK_ELEMENTS // self.n_facets)
+
+            def blocks(first: int, last: int) -> None:
+                for start in range(first, last, step):
+                    rows = slice(start, min(start + step, last))
+                    factor = self._shadow_factor(light[rows], view[rows])
+                    sums[rows] = fused.sums(light[rows], view[rows], factor)
+
+            run_rows(blocks, len(light), 2 * self.n_facets)
+        else:  # ray-cast shadow factors for blocks of rows, to bound the (rows × facets) array
             sums = np.zeros(len(light), dtype=fused.dtype)
             step = max(1, _SHADOW_ELEMENTS // self.n_facets)
             for start in range(0, len(light), step):
@@ -435,31 +451,26 @@ class Renderer:
         return terms if shadow is None else terms * shadow
 
     def _shadow_factor(self, light: Any, view: Any) -> Any:
-        """``lit · seen`` for a chunk, shape (chunk, K), or None when no shadowing applies.
+        """Joint (lit and seen) fraction for a chunk, shape (chunk, K), or None when no
+        shadowing applies.
 
         ``light``/``view`` are torch tensors (eager path) or numpy arrays (fused path); the
         factor is of the same kind and dtype, in the renderer's (material-sorted) facet order.
+        Facets turned away from ``L`` or ``V`` may get any value: the flux multiplies them by
+        ``max(0, n·L) max(0, n·V) = 0``.
         """
         if self.shadows == "none":
             return None
-        tensors = _is_tensor(light)
-        if tensors:
+        if self.shadows == "table":
+            return self.compiled.visibility.joint(light, view, order=self._order, facing=False)
+        rays = [v.detach().cpu().numpy() if _is_tensor(v) else v for v in (light, view)]
+        factor = joint_visible_fraction(self.compiled, *(v.astype(float) for v in rays))
+        factor = factor[:, self._order]
+        if _is_tensor(light):
             import torch
 
-            directions = torch.cat([light, view])
-        else:
-            directions = np.concatenate([light, view])
-        if self.shadows == "table":
-            both = self.compiled.visibility.interpolate(directions)
-        else:
-            rays = directions.detach().cpu().numpy() if tensors else directions
-            both = visible_fraction(self.compiled, rays.astype(float))
-            if tensors:
-                both = torch.as_tensor(both, dtype=self.dtype, device=self.device)
-        both = both[:, self._order]
-        n = light.shape[0]
-        factor = both[:n] * both[n:]
-        return factor if tensors else np.ascontiguousarray(factor, dtype=light.dtype)
+            return torch.as_tensor(factor, dtype=self.dtype, device=self.device)
+        return np.ascontiguousarray(factor, dtype=light.dtype)
 
 
 def _compiled_or_eager(kernel: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:

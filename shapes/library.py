@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import os
 import re
 import shutil
@@ -60,6 +61,8 @@ from shapes.validation import validate
 from shapes.visibility import (
     DEFAULT_RESOLUTION,
     DEFAULT_SAMPLES,
+    DEFAULT_SPACING,
+    TableFormatError,
     VisibilityTable,
     build_visibility_table,
 )
@@ -72,6 +75,8 @@ __all__ = [
     "check_name",
     "get_library",
 ]
+
+logger = logging.getLogger(__name__)
 
 MANIFEST = "manifest.json"
 #: Lock file of writers, beside the manifest.
@@ -254,6 +259,11 @@ class ShapeLibrary:
                 raise ShapeError(f"{where}: visibility table {table_name} missing or changed")
             try:
                 return model.with_visibility(VisibilityTable.load(table_path))
+            except TableFormatError as exc:
+                if self.read_only or not build_visibility:
+                    raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
+                logger.warning("%s: %s; rebuilding it", where, exc)
+                return self._rebuild(name, model, entry, table_path)
             except ShapeError as exc:
                 raise ShapeError(f"{where}: {exc}") from None
         if not build_visibility or model.is_convex:
@@ -262,6 +272,51 @@ class ShapeLibrary:
         if not self.read_only:
             self._store_table(name, entry["sha256"], table)
         return model.with_visibility(table)
+
+    def _rebuild_hint(self, name: str) -> str:
+        """How to rebuild the table of ``name`` (a command line)."""
+        if self.path.resolve() == builtin_library_path().resolve():
+            return f"run `python -m shapes.builtin {name}`"
+        return f"run `lightcurve shapes rebuild {name} --library {self.path}`"
+
+    def _rebuild(
+        self, name: str, model: FacetModel, entry: Mapping[str, Any], old_table: Path | None
+    ) -> FacetModel:
+        """Build the table of ``model`` with the resolution and sampling of ``old_table``
+        (when readable) and store it."""
+        options: dict[str, Any] = {
+            "resolution": DEFAULT_RESOLUTION,
+            "samples": DEFAULT_SAMPLES,
+            "spacing": DEFAULT_SPACING,
+        }
+        if old_table is not None and old_table.is_file():
+            try:
+                with np.load(old_table, allow_pickle=False) as data:
+                    for key, value in options.items():
+                        if key in data.files:
+                            options[key] = type(value)(data[key])
+            except (OSError, ValueError):
+                pass  # an unreadable old table: the defaults
+        table = build_visibility_table(model, **options)
+        self._store_table(name, entry["sha256"], table)
+        return model.with_visibility(table)
+
+    def rebuild_visibility(self, name: str) -> FacetModel:
+        """Rebuild and store the visibility table of a non-convex shape (e.g. one stored in an
+        older table format), keeping its grid resolution and sampling.
+
+        Returns
+        -------
+        FacetModel
+            The shape with its new table (a convex shape is returned without one).
+        """
+        self._check_writable()
+        entry = self.info(check_name(name))
+        model = self.load(name, visibility=False)
+        if model.is_convex:
+            return model
+        old = entry.get("visibility")
+        return self._rebuild(name, model, entry, self.path / old if old else None)
 
     @staticmethod
     def _field(entry: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
@@ -316,6 +371,7 @@ class ShapeLibrary:
         parts: Any = None,
         resolution: int = DEFAULT_RESOLUTION,
         samples: int = DEFAULT_SAMPLES,
+        spacing: float = DEFAULT_SPACING,
         progress: bool = False,
     ) -> FacetModel:
         """Add a shape from a mesh file.
@@ -338,8 +394,9 @@ class ShapeLibrary:
         parts : list of dict or Articulation, optional
             Articulated parts (:mod:`shapes.articulation`), checked against the mesh groups
             before anything is written.
-        resolution, samples, progress :
-            Visibility-table parameters for non-convex shapes (``progress``: a tqdm bar).
+        resolution, samples, spacing, progress :
+            Visibility-table parameters for non-convex shapes (:func:`build_visibility_table`;
+            ``progress``: a tqdm bar).
 
         Returns
         -------
@@ -353,7 +410,12 @@ class ShapeLibrary:
         model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
         articulation = _articulation(parts, model, name, mesh)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
-        table_options = {"resolution": resolution, "samples": samples, "progress": progress}
+        table_options = {
+            "resolution": resolution,
+            "samples": samples,
+            "spacing": spacing,
+            "progress": progress,
+        }
         verbatim = mesh if keep_file else None
         return self._commit(name, model, record, force, verbatim, table_options, articulation)
 
@@ -366,6 +428,7 @@ class ShapeLibrary:
         force: bool = False,
         resolution: int = DEFAULT_RESOLUTION,
         samples: int = DEFAULT_SAMPLES,
+        spacing: float = DEFAULT_SPACING,
         parts: Any = None,
     ) -> FacetModel:
         """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ.
@@ -378,7 +441,7 @@ class ShapeLibrary:
         validate(model)
         articulation = _articulation(parts, model, name, None)
         record = {**model.provenance, **dict(provenance or {})}
-        table_options = {"resolution": resolution, "samples": samples}
+        table_options = {"resolution": resolution, "samples": samples, "spacing": spacing}
         return self._commit(name, model, record, force, None, table_options, articulation)
 
     def _check_free(self, name: str, force: bool) -> None:

@@ -1,4 +1,4 @@
-"""Manage the shape library: list, show, add, remove, validate and render shapes.
+"""Manage the shape library: list, show, add, remove, validate, rebuild and render shapes.
 
 The library is the folder given by --library, else $LIGHTCURVE_LIBRARY, else the built-in
 library shipped with the project (read-only). See docs/shapes.md for the manifest format.
@@ -21,7 +21,7 @@ from shapes.articulation import ArticulatedModel, axis_rotation
 from shapes.library import LibraryReadOnlyError
 
 NAME = "shapes"
-HELP = "manage the shape library (list, show, add, remove, validate, render)"
+HELP = "manage the shape library (list, show, add, remove, validate, rebuild, render)"
 ORDER = 30
 
 
@@ -97,6 +97,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = action("remove", "remove a shape")
     p.add_argument("name")
     p = action("validate", "check every shape (or one): checksum, mesh, materials, tables")
+    p.add_argument("name", nargs="?")
+    p = action(
+        "rebuild",
+        "rebuild the visibility tables of every non-convex shape (or one), e.g. tables written "
+        "in an older format; keeps each table's resolution and sampling",
+    )
     p.add_argument("name", nargs="?")
     p = action("render", "write a PNG preview coloured by material")
     p.add_argument("name")
@@ -282,6 +288,21 @@ def _validate(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    names = [args.name] if args.name else library.names()
+    for name in names:
+        model = library.rebuild_visibility(name)
+        table = model.visibility
+        if table is None:
+            print(f"{name}: convex, no visibility table")
+            continue
+        print(
+            f"rebuilt {name}: {len(table.grid)} directions, {table.n_points} sample points, "
+            f"{table.nbytes / 2**20:.1f} MiB in memory"
+        )
+    return 0
+
+
 def _render(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     from shapes.preview import render_preview
 
@@ -339,5 +360,6 @@ _ACTIONS: dict[str, Any] = {
     "add": _add,
     "remove": _remove,
     "validate": _validate,
+    "rebuild": _rebuild,
     "render": _render,
 }

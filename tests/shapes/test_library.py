@@ -101,7 +101,9 @@ def test_bad_names(name):
 def test_add_load_remove_round_trip(tmp_path):
     library = ShapeLibrary(tmp_path / "lib")
     wing = primitives.box_wing(subdivisions=2)
-    stored = library.add_model("wing.v2", wing, provenance={"license": "CC0"}, samples=16)
+    stored = library.add_model(
+        "wing.v2", wing, provenance={"license": "CC0"}, samples=16, spacing=0.0
+    )
     assert library.names() == ["wing.v2"]
     entry = library.info("wing.v2")
     assert entry["provenance"]["license"] == "CC0" and entry["visibility"]
@@ -168,7 +170,7 @@ def test_changed_mesh_is_detected(tmp_path):
 
 def test_missing_table_is_built_and_cached(tmp_path):
     library = ShapeLibrary(tmp_path)
-    library.add_model("wing", primitives.box_wing(), samples=4)
+    library.add_model("wing", primitives.box_wing(), samples=4, spacing=0.0)
     manifest = json.loads(library.manifest_path.read_text())
     os.remove(tmp_path / manifest["shapes"]["wing"]["visibility"])
     manifest["shapes"]["wing"]["visibility"] = None

@@ -1,4 +1,4 @@
-"""Self-shadowing: the direction grid, exact ray casting, visibility tables (acceptance 3)."""
+"""Self-shadowing: the direction grid, exact ray casting, visibility tables."""
 
 import dataclasses
 
@@ -198,7 +198,9 @@ def test_table_follows_principal_frame_rotation(builtin):
 def test_exact_fraction_defaults_to_the_table_sampling(builtin):
     compiled = builtin.load("box_wing").compiled()
     d = _random_directions(20, seed=10)
+    table = compiled.visibility
     default = shapes.visible_fraction(compiled, d)
-    np.testing.assert_array_equal(default, shapes.visible_fraction(compiled, d, samples=256))
-    coarse = shapes.visible_fraction(compiled, d, samples=4)
+    same = shapes.visible_fraction(compiled, d, samples=table.samples, spacing=table.spacing)
+    np.testing.assert_array_equal(default, same)
+    coarse = shapes.visible_fraction(compiled, d, samples=4, spacing=0.0)
     assert np.abs(coarse - default).max() > 0  # the sampling matters, so it must match
