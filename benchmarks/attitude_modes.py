@@ -90,7 +90,11 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
         true_offset_q = None
     t0 = time.perf_counter()
-    result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
+    try:
+        result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
+    except (ValueError, RuntimeError) as exc:  # a failed inversion is a wrong call
+        record.update(called="error", probability=0.0, error=str(exc))
+        return record
     record["runtime_s"] = time.perf_counter() - t0
     mode = result.attitude_mode
     record.update(
@@ -127,7 +131,7 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
             )
         )
     modes = [*STABILISED, "tumbling"]
-    confusion = {t: dict.fromkeys(modes, 0) for t in modes}
+    confusion = {t: dict.fromkeys([*modes, "error"], 0) for t in modes}
     for r in records:
         confusion[r["truth"]][r["called"]] += 1
     right = [r["called"] == r["truth"] and r["probability"] >= 0.9 for r in records]

@@ -285,9 +285,15 @@ def _stabilised(
         log_prior = math.log(symmetry_order) - _LOG_SO3_VOLUME
     else:
         fit = _ProfileFit(model, shape, q_ref, identity)
-        starts = np.concatenate(
-            [np.zeros((1, 3)), np.eye(3) * offset_sigma, -np.eye(3) * offset_sigma]
+        # Glints make the χ² surface rough within a few degrees: screen offsets drawn in
+        # the prior's ±2σ cube on every epoch, then fit from the best few.
+        probes = np.concatenate(
+            [np.zeros((1, 3)), rng.uniform(-2.0, 2.0, (search_candidates // 4, 3)) * offset_sigma]
         )
+        cost = np.sum(fit.residuals(probes) ** 2, axis=1) + np.sum(
+            (probes / offset_sigma) ** 2, axis=1
+        )
+        starts = probes[np.argsort(cost)[:4]]
         delta, chi2, information = _fit_profile(fit, starts, offset_sigma)
         precision = np.eye(3) / offset_sigma**2
         log_prior = (
