@@ -1,6 +1,7 @@
 """Monte Carlo study of attitude-mode identification (stabilised or tumbling). Prints JSON.
 
-    python -m benchmarks.attitude_modes [--objects 20] [--seed 0] [--workers 2] [--out FILE]
+    python -m benchmarks.attitude_modes [--objects 20] [--seed 0] [--workers 2] [--cadence 300]
+                                        [--out FILE]
 
 Scenario: a box-wing (library ``box_wing``) in a geostationary slot at a longitude drawn in
 [−130°, −70°], seen from Mount Lemmon for one whole night (epochs every ``--cadence`` s
@@ -163,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--objects", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--cadence", type=float, default=60.0, help="seconds (default 60)")
+    parser.add_argument("--cadence", type=float, default=300.0, help="seconds (default 300)")
     parser.add_argument("--out", help="also write the JSON here")
     args = parser.parse_args(argv)
     report = study(args.objects, args.seed, args.workers, args.cadence)
