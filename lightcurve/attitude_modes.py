@@ -181,9 +181,12 @@ class ModeIdentification:
         }
 
 
-def _log_det(matrix: np.ndarray) -> float:
-    sign, value = np.linalg.slogdet(matrix)
-    return float(value) if sign > 0 else math.inf
+def _log_evidence(chi2: float, log_prior: float, hessian: np.ndarray) -> float:
+    """Laplace ``ln Z = −½ χ² + ln p(θ̂) + (k/2) ln 2π − ½ ln det H`` (module doc)."""
+    sign, log_det = np.linalg.slogdet(hessian)
+    if sign <= 0:
+        return -math.inf
+    return -0.5 * chi2 + log_prior + 0.5 * len(hessian) * math.log(2 * math.pi) - 0.5 * log_det
 
 
 class _ProfileFit:
@@ -301,7 +304,7 @@ def _stabilised(
             - 0.5 * float(delta @ delta) / offset_sigma**2
         )
     hessian = information + precision
-    log_evidence = -0.5 * chi2 + log_prior + 1.5 * math.log(2 * math.pi) - 0.5 * _log_det(hessian)
+    log_evidence = _log_evidence(chi2, log_prior, hessian)
     q = fit.attitudes(delta)
     q_offset = quaternion_multiply(
         rotation_vector_to_quaternion(delta), fit.q_ref[0] if profile == "inertial" else identity
@@ -372,7 +375,7 @@ def _tumbling(
     log_prior = (
         math.log(symmetry_order) - _LOG_SO3_VOLUME - math.log(4.0 / 3.0 * math.pi * omega_max**3)
     )
-    log_evidence = -0.5 * chi2 + log_prior + 3.0 * math.log(2 * math.pi) - 0.5 * _log_det(hessian)
+    log_evidence = _log_evidence(chi2, log_prior, hessian)
     last = np.array([len(times) - 2, len(times) - 1]) if len(times) > 1 else np.array([0])
     q_end = problem.trajectory(cand.q, cand.omega, cand.k, cand.shape, last, t_start)[0].numpy()
     return ModeHypothesis(
