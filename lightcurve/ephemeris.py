@@ -141,18 +141,34 @@ class CircularOrbit:
         sidereal = time(epoch_mjd, format="mjd", scale="utc").sidereal_time("apparent", 0.0)
         return cls(42_164.17, 0.0, 0.0, float(sidereal.deg) + longitude_deg, epoch_mjd)
 
-    def position(self, mjd: np.ndarray) -> np.ndarray:
-        """GCRS position (km) at UTC MJDs, shape (n, 3)."""
-        n = np.sqrt(EARTH_MU_KM3_S2 / self.radius_km**3)
+    @property
+    def mean_motion(self) -> float:
+        """Angular rate along the orbit (rad/s)."""
+        return float(np.sqrt(EARTH_MU_KM3_S2 / self.radius_km**3))
+
+    def _in_plane(self, mjd: np.ndarray, derivative: int) -> np.ndarray:
+        """Position (``derivative`` 0, km) or velocity (1, km/s), GCRS, shape (n, 3)."""
+        n = self.mean_motion
         u = (
             np.deg2rad(self.argument_of_latitude_deg)
             + n * (np.asarray(mjd) - self.epoch_mjd) * 86400
         )
         i, raan = np.deg2rad(self.inclination_deg), np.deg2rad(self.raan_deg)
-        in_plane = np.stack([np.cos(u), np.sin(u)], axis=-1) * self.radius_km
+        phase = u + 0.5 * np.pi * derivative
+        in_plane = (
+            np.stack([np.cos(phase), np.sin(phase)], axis=-1) * self.radius_km * n**derivative
+        )
         node = np.array([np.cos(raan), np.sin(raan), 0.0])
         normal_in_plane = np.array([-np.sin(raan) * np.cos(i), np.cos(raan) * np.cos(i), np.sin(i)])
         return in_plane[:, :1] * node + in_plane[:, 1:] * normal_in_plane
+
+    def position(self, mjd: np.ndarray) -> np.ndarray:
+        """GCRS position (km) at UTC MJDs, shape (n, 3)."""
+        return self._in_plane(mjd, 0)
+
+    def velocity(self, mjd: np.ndarray) -> np.ndarray:
+        """GCRS velocity (km/s) at UTC MJDs, shape (n, 3)."""
+        return self._in_plane(mjd, 1)
 
 
 def orbit_geometry(
@@ -187,9 +203,10 @@ def orbit_geometry(
     Returns
     -------
     Observations
-        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS) and the object's horizon
+        Columns ``mjd``, ``epoch``, ``sun_*``, ``obs_*`` (km, GCRS), the object's horizon
         coordinates at the site, ``range_km``, ``elevation_deg``, ``azimuth_deg`` (WGS84
-        vertical) and ``airmass`` (Kasten & Young 1989).
+        vertical) and ``airmass`` (Kasten & Young 1989), and the object's geocentric
+        position ``obj_x, obj_y, obj_z`` (km) and velocity ``obj_vx, obj_vy, obj_vz`` (km/s).
     """
     from lightcurve.sites import site_itrs
     from lightcurve.topocentric import airmass, horizontal_from_itrs
@@ -218,6 +235,7 @@ def orbit_geometry(
     mjd, r_obj, r_sun, to_observer, elevation, azimuth, distance = (
         a[keep] for a in (mjd, r_obj, r_sun, to_observer, elevation, azimuth, distance)
     )
+    v_obj = orbit.velocity(mjd)
     to_sun = r_sun - r_obj
     table = pd.DataFrame(
         {
@@ -228,6 +246,8 @@ def orbit_geometry(
             "elevation_deg": elevation,
             "azimuth_deg": azimuth,
             "airmass": airmass(elevation),
+            **{f"obj_{a}": r_obj[:, k] for k, a in enumerate("xyz")},
+            **{f"obj_v{a}": v_obj[:, k] for k, a in enumerate("xyz")},
         }
     )
     meta = {

@@ -215,6 +215,12 @@ class InversionOptions:
         Magnitudes between the faintest measurement and the prediction floor.
     compile : bool
         Compile the renderers' kernels (pays off for PF runs with many particles).
+    mode_offset_sigma_deg : float
+        ``modes=True``: 1σ per axis (deg) of the prior of a stabilised profile's offset
+        (:mod:`lightcurve.attitude_modes`).
+    mode_consistency_level : float
+        ``modes=True``: quantile of ``χ²`` (``n − k`` degrees of freedom) above which a
+        stabilised hypothesis does not fit and is discarded.
     """
 
     init: str = "search"
@@ -258,8 +264,12 @@ class InversionOptions:
     polish: bool = True
     faint_margin: float = 7.5
     compile: bool = False
+    mode_offset_sigma_deg: float = 10.0
+    mode_consistency_level: float = 0.999
 
     def __post_init__(self) -> None:
+        if not (self.mode_offset_sigma_deg > 0 and 0 < self.mode_consistency_level < 1):
+            raise ValueError("mode_offset_sigma_deg must be > 0, mode_consistency_level in (0, 1)")
         if self.init not in ("search", "none"):
             raise ValueError(f"init must be 'search' or 'none', got {self.init!r}")
         if self.likelihood not in ("gaussian", "student"):
@@ -308,6 +318,9 @@ class InversionResult:
     covariance : (6, 6) numpy.ndarray
         Final covariance of ``[δθ (rad, body frame), ω (rad/s)]``.
     runtime_s : float
+    attitude_mode : dict or None
+        With ``modes=True``: the summary of :func:`lightcurve.attitude_modes.identify_attitude_mode`
+        (``attitude_mode``, ``attitude_mode_probability``, ``attitude_offsets_deg``, …).
     """
 
     method: str
@@ -328,6 +341,7 @@ class InversionResult:
     symmetry: dict[str, Any] = field(default_factory=dict)
     covariance: np.ndarray = field(default_factory=lambda: np.full((6, 6), np.nan))
     runtime_s: float = 0.0
+    attitude_mode: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready dictionary of the scalar fields (no table)."""
@@ -348,6 +362,7 @@ class InversionResult:
             "parameters": {k: float(v) for k, v in self.parameters.items()},
             "symmetry": self.symmetry,
             "runtime_s": float(self.runtime_s),
+            **(self.attitude_mode or {}),
         }
 
 
@@ -448,21 +463,7 @@ class _Context:
         return self.model.names
 
     def problem(self) -> BatchProblem:
-        model = self.model
-
-        def measure(q: torch.Tensor, epochs: np.ndarray, shape: torch.Tensor) -> torch.Tensor:
-            return model.magnitude_by_shape(q.to(model.dtype), epochs, shape).to(torch.float64)
-
-        shapes = list(model.shapes.values())
-        return BatchProblem(
-            model.times,
-            model.magnitudes,
-            model.errors,
-            measure,
-            [s.inertia for s in shapes],
-            principal_axes=[s.principal_axes for s in shapes],
-            estimate_inertia=self.options.estimate_inertia,
-        )
+        return batch_problem(self.model, self.options.estimate_inertia)
 
     def windows(self, longest: float, growth: float = 2.0) -> tuple[float, ...]:
         """Growing fit windows (s): 30 s, growing ``growth``-fold, up to ``longest``."""
@@ -470,6 +471,25 @@ class _Context:
         while windows and growth * windows[-1] < longest:
             windows.append(growth * windows[-1])  # grow gently: LM stays in its basin
         return (*windows, longest)
+
+
+def batch_problem(model: PhotometricModel, estimate_inertia: bool = False) -> BatchProblem:
+    """The torque-free batch problem (:class:`filters.global_search.BatchProblem`) of a
+    photometric model's measurements and shapes."""
+
+    def measure(q: torch.Tensor, epochs: np.ndarray, shape: torch.Tensor) -> torch.Tensor:
+        return model.magnitude_by_shape(q.to(model.dtype), epochs, shape).to(torch.float64)
+
+    shapes = list(model.shapes.values())
+    return BatchProblem(
+        model.times,
+        model.magnitudes,
+        model.errors,
+        measure,
+        [s.inertia for s in shapes],
+        principal_axes=[s.principal_axes for s in shapes],
+        estimate_inertia=estimate_inertia,
+    )
 
 
 def _search(
@@ -1284,6 +1304,7 @@ def invert(
     seed: int = 0,
     progress: Progress | None = None,
     options: InversionOptions | None = None,
+    modes: bool = False,
     **option_overrides: Any,
 ) -> InversionResult:
     """Estimate attitude, rates (and shape) from one light curve.
@@ -1316,6 +1337,11 @@ def invert(
         ``progress(fraction, message)`` with ``fraction`` in ``[0, 1]``.
     options : InversionOptions, optional
         Tuning; keyword arguments override single fields (``estimate_inertia=True``).
+    modes : bool
+        Also weigh stabilised attitude profiles against tumbling
+        (:mod:`lightcurve.attitude_modes`): the result's ``attitude_mode`` holds the mode,
+        its probability and the fitted offsets; when a stabilised mode is the more probable,
+        the shape, attitude, rates and their 1σ come from its fit.
 
     Returns
     -------
@@ -1361,5 +1387,54 @@ def invert(
         result = _run_pf(ctx, q0, omega0, sigma, omega_sigma, particles)
     else:
         result = _run_bank(ctx, method, q0, omega0, sigma, omega_sigma)
+    if modes:
+        ctx.report(0.95, "attitude modes")
+        _attitude_modes(ctx, result)
+        result.runtime_s = time.perf_counter() - start
     ctx.report(1.0, "done")
     return result
+
+
+def _attitude_modes(ctx: _Context, result: InversionResult) -> None:
+    """Weigh stabilised profiles against the tumbling fit (:mod:`lightcurve.attitude_modes`)
+    and fill ``result.attitude_mode`` (and the state, when a profile wins)."""
+    from lightcurve.attitude_modes import TUMBLING, identify_attitude_mode
+
+    obs = ctx.observations
+    first = result.estimates.iloc[0]
+    starts = [
+        (
+            first[["q1", "q2", "q3", "q4"]].to_numpy(float),
+            first[["wx", "wy", "wz"]].to_numpy(float),
+            0.0,
+        ),
+        (result.quaternion, result.omega_rad_s, float(ctx.model.times[-1])),
+    ]
+    found = identify_attitude_mode(
+        ctx.model,
+        ctx.problem(),
+        dict.fromkeys(range(ctx.model.n_shapes), starts),
+        [ctx.symmetry(s).order for s in range(ctx.model.n_shapes)],
+        omega_max=ctx.omega_max,
+        offset_sigma_deg=ctx.options.mode_offset_sigma_deg,
+        consistency_level=ctx.options.mode_consistency_level,
+        position=obs.object_positions if obs.has_object_position else None,
+        velocity=obs.object_velocities if obs.has_object_velocity else None,
+        max_epochs=ctx.options.max_epochs,
+        max_rotation=math.radians(ctx.options.max_sample_rotation_deg),
+        seed=ctx.seed,
+    )
+    ctx.notes.extend(found.notes)
+    result.attitude_mode = found.summary()
+    if found.mode != TUMBLING:
+        best = found.best
+        result.shape = best.shape
+        result.quaternion = quaternion_canonical(best.quaternion)
+        result.omega_rad_s = best.omega_rad_s
+        result.attitude_sigma_deg = float(np.linalg.norm(best.offset_sigma_deg))
+        result.omega_sigma_rad_s = np.zeros(3)
+        ctx.notes.append(
+            f"attitude mode {found.mode} (p = {found.probability:.3f}): the state is the "
+            "profile's with the fitted offset; the rates follow the profile"
+        )
+    result.none_fits = bool(result.none_fits and found.none_fits)

@@ -17,7 +17,9 @@ curve), ``relative`` (bool; the light curve has an arbitrary magnitude offset), 
 columns ``q1 q2 q3 q4 wx wy wz`` (attitude inertial → body, body rates in rad/s), and the
 geometry of Earth satellites written by ``geometry --tle`` and ``import``: ``shadow``
 (sunlit, penumbra, umbra, annular), ``sunlit_fraction``, ``phase_angle_deg``, ``range_km``,
-``elevation_deg``, ``azimuth_deg``, ``airmass``, ``tle_age_days``, and those of a
+``elevation_deg``, ``azimuth_deg``, ``airmass``, ``tle_age_days``; the object's geocentric
+position ``obj_x, obj_y, obj_z`` (km) and velocity ``obj_vx, obj_vy, obj_vz`` (km/s), same
+inertial frame, written by ``geometry`` (attitude profiles need them); and those of a
 simulation under observing conditions: ``extinction_mag`` (mag) and ``saturated`` (bool).
 
 Kilometres and MJD are the file units; the accessors (:attr:`Observations.times`,
@@ -37,6 +39,8 @@ from lightcurve.shadow_earth import SHADOW_STATES
 
 __all__ = [
     "KM",
+    "OBJECT_POSITION_COLUMNS",
+    "OBJECT_VELOCITY_COLUMNS",
     "OBSERVER_COLUMNS",
     "SUN_COLUMNS",
     "TRUTH_COLUMNS",
@@ -50,6 +54,10 @@ SECONDS_PER_DAY = 86400.0
 SUN_COLUMNS = ("sun_x", "sun_y", "sun_z")
 OBSERVER_COLUMNS = ("obs_x", "obs_y", "obs_z")
 TRUTH_COLUMNS = ("q1", "q2", "q3", "q4", "wx", "wy", "wz")
+#: Geocentric position (km) and velocity (km/s) of the object, inertial frame.
+OBJECT_POSITION_COLUMNS = ("obj_x", "obj_y", "obj_z")
+OBJECT_VELOCITY_COLUMNS = ("obj_vx", "obj_vy", "obj_vz")
+OBJECT_COLUMNS = (*OBJECT_POSITION_COLUMNS, *OBJECT_VELOCITY_COLUMNS)
 MAG_COLUMNS = ("mag", "mag_err")
 #: Geometry written alongside the vectors by ``geometry --tle`` and ``import``.
 GEOMETRY_NUMERIC = (
@@ -70,6 +78,7 @@ OPTIONAL_NUMERIC = (
     *TRUTH_COLUMNS,
     *GEOMETRY_NUMERIC,
     "extinction_mag",
+    *OBJECT_COLUMNS,
 )
 FLAG_COLUMNS = ("relative", "saturated")
 KNOWN_COLUMNS = (
@@ -85,11 +94,16 @@ KNOWN_COLUMNS = (
     *TRUTH_COLUMNS,
     *GEOMETRY_COLUMNS,
     *CONDITIONS_COLUMNS,
+    *OBJECT_COLUMNS,
 )
 
 # Plausible ranges (km) used to catch vectors given in the wrong unit.
 SUN_RANGE_KM = (1e6, 1e11)
 OBSERVER_RANGE_KM = {"satellite": (100.0, 1e9), "asteroid": (1e3, 1e11)}
+# Geocentric distance (km) and speed (km/s) of an Earth-orbiting object: from below the
+# Earth's polar radius (6357 km) to well beyond the Moon; speeds below escape from LEO.
+OBJECT_RANGE_KM = (6300.0, 2e6)
+OBJECT_SPEED_KM_S = 20.0
 
 
 class ObservationError(ValueError):
@@ -174,6 +188,28 @@ class Observations:
     def observer_vectors(self) -> np.ndarray:
         """Object → observer vectors in the inertial frame, metres, shape (n, 3)."""
         return self.table[list(OBSERVER_COLUMNS)].to_numpy(dtype=float) * KM
+
+    @property
+    def has_object_position(self) -> bool:
+        """Whether the object-position columns ``obj_x, obj_y, obj_z`` are present."""
+        return all(c in self.table for c in OBJECT_POSITION_COLUMNS)
+
+    @property
+    def has_object_velocity(self) -> bool:
+        """Whether the object-velocity columns ``obj_vx, obj_vy, obj_vz`` are present."""
+        return all(c in self.table for c in OBJECT_VELOCITY_COLUMNS)
+
+    @property
+    def object_positions(self) -> np.ndarray:
+        """Geocentric object positions in the inertial frame, metres, shape (n, 3)."""
+        self._require(OBJECT_POSITION_COLUMNS)
+        return self.table[list(OBJECT_POSITION_COLUMNS)].to_numpy(dtype=float) * KM
+
+    @property
+    def object_velocities(self) -> np.ndarray:
+        """Geocentric object velocities in the inertial frame, m/s, shape (n, 3)."""
+        self._require(OBJECT_VELOCITY_COLUMNS)
+        return self.table[list(OBJECT_VELOCITY_COLUMNS)].to_numpy(dtype=float) * KM
 
     @property
     def has_magnitudes(self) -> bool:
@@ -333,6 +369,23 @@ def validate_table(
                 column=name,
             )
 
+    for group in (OBJECT_POSITION_COLUMNS, OBJECT_VELOCITY_COLUMNS):
+        present = [c for c in group if c in table]
+        if present and len(present) < 3:
+            missing = next(c for c in group if c not in table)
+            raise ObservationError(
+                f"missing column '{missing}': {', '.join(group)} go together",
+                source,
+                column=missing,
+            )
+    if OBJECT_VELOCITY_COLUMNS[0] in table and OBJECT_POSITION_COLUMNS[0] not in table:
+        raise ObservationError(
+            "object velocity columns without the position columns "
+            + ", ".join(OBJECT_POSITION_COLUMNS),
+            source,
+            column=OBJECT_POSITION_COLUMNS[0],
+        )
+
     bad = np.zeros(len(table), dtype=bool)
 
     def flag(mask: np.ndarray, column: str | None, message: str) -> None:
@@ -413,6 +466,26 @@ def validate_table(
                 if label == "object->observer" and meta.get("target") != "asteroid"
                 else ""
             ),
+        )
+    if OBJECT_POSITION_COLUMNS[0] in table:
+        distance = np.linalg.norm(
+            table[list(OBJECT_POSITION_COLUMNS)].fillna(OBJECT_RANGE_KM[0]).to_numpy(), axis=1
+        )
+        outside = (distance < OBJECT_RANGE_KM[0]) | (distance > OBJECT_RANGE_KM[1])
+        flag(
+            outside,
+            OBJECT_POSITION_COLUMNS[0],
+            f"geocentric object distance {_first(distance, outside):.4g} km is outside "
+            f"{OBJECT_RANGE_KM[0]:g}..{OBJECT_RANGE_KM[1]:.0e} km: positions must be "
+            "geocentric, in km",
+        )
+    if OBJECT_VELOCITY_COLUMNS[0] in table:
+        speed = np.linalg.norm(table[list(OBJECT_VELOCITY_COLUMNS)].fillna(0.0).to_numpy(), axis=1)
+        flag(
+            speed > OBJECT_SPEED_KM_S,
+            OBJECT_VELOCITY_COLUMNS[0],
+            f"object speed {_first(speed, speed > OBJECT_SPEED_KM_S):.4g} km/s is above "
+            f"{OBJECT_SPEED_KM_S:g} km/s: velocities must be in km/s (m/s given?)",
         )
     if "sunlit_fraction" in table:
         fraction = table["sunlit_fraction"].fillna(1.0).to_numpy()

@@ -8,7 +8,8 @@ data so the job can be shipped to worker processes or a Dask cluster.
 Summary keys (the contract of ``docs/inversion.md``): ``input``, ``method``, ``status``,
 ``error``, ``shape``, ``shape_probabilities``, ``none_fits``, ``epoch`` (ISO UTC of the last
 measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``, ``omega_sigma_rad_s``,
-``modes``, ``residual_rms_mag``, ``n_measurements``, ``runtime_s``.
+``modes``, ``residual_rms_mag``, ``n_measurements``, ``runtime_s`` and, with ``modes``,
+``attitude_mode``, ``attitude_mode_probability``, ``attitude_offsets_deg`` (None without).
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ SUMMARY_KEYS = (
     "residual_rms_mag",
     "n_measurements",
     "runtime_s",
+    "attitude_mode",
+    "attitude_mode_probability",
+    "attitude_offsets_deg",
 )
 
 
@@ -88,6 +92,7 @@ def invert_file(
     seed: int = 0,
     init: str = "search",
     drop_bad_rows: bool = False,
+    modes: bool = False,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
 
@@ -141,6 +146,7 @@ def invert_file(
         observations,
         candidates,
         method=method,
+        modes=modes,
         **{k: v for k, v in options.items() if v is not None},
     )
     atomic_write_table(result.estimates, result_dir / "estimates.parquet")
@@ -168,4 +174,5 @@ def invert_file(
         "n_measurements": int(result.n_measurements),
         "dropped_rows": len(observations.dropped),
         "notes": list(getattr(result, "notes", [])),
+        **(result.attitude_mode or dict.fromkeys(SUMMARY_KEYS[-3:])),
     }

@@ -63,6 +63,8 @@ class SatelliteGeometry:
     shadow_model : str
     tle_age_days : (n,) numpy.ndarray or None
         Epoch minus the epoch of the TLE used (TLE route only).
+    object_velocity_gcrs : (n, 3) numpy.ndarray or None
+        Geocentric GCRS velocity of the object (km/s; TLE route only).
     """
 
     site: Site
@@ -74,6 +76,7 @@ class SatelliteGeometry:
     rotations: FrameRotations
     shadow_model: str = "conical"
     tle_age_days: np.ndarray | None = None
+    object_velocity_gcrs: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.mjd)
@@ -111,7 +114,12 @@ class SatelliteGeometry:
             "elevation_deg": elevation,
             "azimuth_deg": azimuth,
             "airmass": airmass(elevation),
+            **{f"obj_{a}": self.object_gcrs[:, k] for k, a in enumerate("xyz")},
         }
+        if self.object_velocity_gcrs is not None:
+            columns.update(
+                {f"obj_v{a}": self.object_velocity_gcrs[:, k] for k, a in enumerate("xyz")}
+            )
         if self.tle_age_days is not None:
             columns["tle_age_days"] = self.tle_age_days
         return pd.DataFrame(columns)
@@ -131,6 +139,7 @@ class SatelliteGeometry:
             rotations,
             self.shadow_model,
             None if self.tle_age_days is None else self.tle_age_days[keep],
+            None if self.object_velocity_gcrs is None else self.object_velocity_gcrs[keep],
         )
 
 
@@ -141,6 +150,7 @@ def _from_object_itrs(
     object_itrs: np.ndarray,
     shadow_model: str,
     tle_age_days: np.ndarray | None = None,
+    object_velocity_gcrs: np.ndarray | None = None,
 ) -> SatelliteGeometry:
     station = site_itrs(site)
     return SatelliteGeometry(
@@ -153,6 +163,7 @@ def _from_object_itrs(
         rotations,
         shadow_model,
         tle_age_days,
+        object_velocity_gcrs,
     )
 
 
@@ -184,7 +195,12 @@ def from_tle(
     state = propagate_teme(tles, mjd, max_age_days)
     rotations = frame_rotations(mjd)
     object_itrs = _apply(rotations.teme_to_itrs, state.position_km)
-    return _from_object_itrs(site, mjd, rotations, object_itrs, shadow_model, state.age_days)
+    # TEME → GCRS turns by precession–nutation only (< 10⁻¹¹ rad/s): velocities rotate as
+    # vectors, the frame's own rate adds < 10⁻⁶ m/s.
+    velocity = _apply(rotations.teme_to_gcrs, state.velocity_km_s)
+    return _from_object_itrs(
+        site, mjd, rotations, object_itrs, shadow_model, state.age_days, velocity
+    )
 
 
 def from_horizontal(

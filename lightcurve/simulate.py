@@ -1,7 +1,9 @@
-"""Light-curve simulation: torque-free truth, rendering, and measurement noise.
+"""Light-curve simulation: attitude truth, rendering, and measurement noise.
 
 :func:`simulate` propagates the attitude from the first epoch of a geometry table with the
-attitude core's DOP853 integrator, renders the magnitudes with
+attitude core's DOP853 integrator (``torque-free``, the default) or follows a stabilised
+attitude profile of :mod:`lightcurve.profiles` (``inertial``, ``nadir``, ``sun-pointing``,
+with a fixed offset; the rates are those of the attitude sequence), renders the magnitudes with
 :class:`~lightcurve.render.Renderer`, adds noise, and returns an observation table with
 ``mag``, ``mag_err`` and the truth columns ``q1 q2 q3 q4 wx wy wz`` (rad/s). An articulated
 shape (:class:`~shapes.articulation.ArticulatedModel`) is rendered by
@@ -25,6 +27,7 @@ from scipy.integrate import solve_ivp
 from filters.attitude import quaternion_normalize, validate_inertia
 from lightcurve.noise import CCDNoise, GaussianNoise, Measurement, NoiseModel, ObservingNoise
 from lightcurve.observations import TRUTH_COLUMNS, Observations, validate_table
+from lightcurve.profiles import PROFILES, offset_quaternion, profile_states
 from lightcurve.render import Renderer
 from shapes import FacetModel
 from shapes.articulation import ArticulatedModel
@@ -94,15 +97,59 @@ def truth_states(
     return states
 
 
+def _attitude(
+    geometry: Observations,
+    profile: str,
+    q0: np.ndarray | None,
+    omega0: np.ndarray | None,
+    inertia: np.ndarray,
+    offset_deg: np.ndarray | None,
+    yaw_steering: bool,
+) -> tuple[np.ndarray, dict[str, str]]:
+    """True states of the attitude profile and the metadata recording it."""
+
+    def joined(values: np.ndarray) -> str:
+        return ",".join(f"{v:.12g}" for v in np.asarray(values, float))
+
+    if profile not in PROFILES:
+        raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {profile!r}")
+    if profile == "torque-free":
+        if offset_deg is not None or yaw_steering:
+            raise ValueError("offsets and yaw steering apply to stabilised profiles only")
+        if q0 is None or omega0 is None:
+            raise ValueError("the torque-free profile needs q0 and omega0")
+        states = truth_states(geometry.times, q0, omega0, inertia)
+        return states, {"q0": joined(q0), "omega0_rad_s": joined(omega0)}
+    if omega0 is not None:
+        raise ValueError(f"omega0 does not apply to the {profile} profile (rates follow it)")
+    if q0 is not None and profile != "inertial":
+        raise ValueError(f"q0 does not apply to the {profile} profile (it fixes the attitude)")
+    states = profile_states(
+        geometry,
+        profile,
+        reference=q0,
+        yaw_steering=yaw_steering,
+        offset=None if offset_deg is None else offset_quaternion(offset_deg),
+    )
+    meta = {"profile": profile + (" yaw-steering" if yaw_steering else "")}
+    meta["offset_deg"] = joined(np.zeros(3) if offset_deg is None else offset_deg)
+    if q0 is not None:
+        meta["q_reference"] = joined(q0)
+    return states, meta
+
+
 def simulate(
     geometry: Observations,
     shape: FacetModel | ArticulatedModel,
-    q0: np.ndarray,
-    omega0: np.ndarray,
+    q0: np.ndarray | None,
+    omega0: np.ndarray | None,
     inertia: np.ndarray | None = None,
     noise: NoiseModel | None = None,
     shadows: str = "auto",
     seed: int | np.random.Generator | None = None,
+    profile: str = "torque-free",
+    offset_deg: np.ndarray | None = None,
+    yaw_steering: bool = False,
 ) -> Observations:
     """Simulate a light curve over the epochs of a geometry table.
 
@@ -112,10 +159,12 @@ def simulate(
         Epochs and Sun/observer vectors (``mag`` columns, if any, are replaced).
     shape : FacetModel or ArticulatedModel
         Shape with materials (and parts).
-    q0 : (4,) array
-        Attitude at the first epoch (inertial → body).
-    omega0 : (3,) array
-        Body rates at the first epoch (rad/s, body frame).
+    q0 : (4,) array or None
+        Attitude at the first epoch (inertial → body) of the ``torque-free`` profile; the
+        fixed reference attitude of the ``inertial`` profile (default the identity);
+        unused by the other profiles (give None).
+    omega0 : (3,) array or None
+        Body rates at the first epoch (rad/s, body frame), ``torque-free`` only.
     inertia : (3, 3) array, optional
         Body-frame inertia; defaults to the shape's.
     noise : NoiseModel, optional
@@ -124,6 +173,13 @@ def simulate(
         Renderer shadow mode (``"auto"``, ``"none"``, ``"table"``, ``"exact"``).
     seed : int or numpy.random.Generator, optional
         Noise seed.
+    profile : {"torque-free", "inertial", "nadir", "sun-pointing"}
+        Attitude profile (:mod:`lightcurve.profiles`); ``nadir`` needs the ``obj_*``
+        columns of ``lightcurve geometry``.
+    offset_deg : (3,) array, optional
+        Fixed offset ``[roll, pitch, yaw]`` (deg) of a stabilised profile.
+    yaw_steering : bool
+        Yaw-steer the ``nadir`` profile.
 
     Returns
     -------
@@ -133,7 +189,9 @@ def simulate(
     """
     rng = np.random.default_rng(seed)
     inertia = shape.inertia if inertia is None else np.asarray(inertia, float)
-    states = truth_states(geometry.times, q0, omega0, inertia)
+    states, attitude_meta = _attitude(
+        geometry, profile, q0, omega0, inertia, offset_deg, yaw_steering
+    )
     joints = {}
     if isinstance(shape, ArticulatedModel):
         from lightcurve.articulated import ArticulatedRenderer
@@ -178,8 +236,7 @@ def simulate(
         {
             "simulated": "true",
             "shape": shape.name,
-            "q0": ",".join(f"{v:.12g}" for v in q0),
-            "omega0_rad_s": ",".join(f"{v:.12g}" for v in omega0),
+            **attitude_meta,
             "inertia": ",".join(f"{v:.12g}" for v in np.asarray(inertia).ravel()),
             "noise": noise.describe() if noise is not None else "none",
             "shadows": renderer.shadows,

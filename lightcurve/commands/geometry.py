@@ -11,7 +11,9 @@ span only epochs with the object above --min-elevation and the site in darkness 
 keeps them; with --epochs-from they are kept unless --umbra drop). The file has the
 observation-file columns without mag/mag_err (GCRS vectors, km; UTC epochs), the range,
 elevation, azimuth and airmass at the site and, for TLEs, the shadow state, sunlit fraction
-and phase angle; it can be passed to `lightcurve simulate`.
+and phase angle; the object's geocentric GCRS position obj_x, obj_y, obj_z (km) and velocity
+obj_vx, obj_vy, obj_vz (km/s) are written on both routes (attitude profiles need them). The
+file can be passed to `lightcurve simulate`.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from lightcurve.importing import MICROSECONDS_PER_DAY, epoch_strings, read_epoch
 from lightcurve.observations import (
     GEOMETRY_COLUMNS,
     MJD_EPOCH,
+    OBJECT_COLUMNS,
     OBSERVER_COLUMNS,
     SUN_COLUMNS,
     Observations,
@@ -133,7 +136,9 @@ def _tle(args: argparse.Namespace) -> int:
         carried, meta, micro = read_epochs(args.epochs_from)
         carried = carried.drop(
             columns=[
-                c for c in (*SUN_COLUMNS, *OBSERVER_COLUMNS, *GEOMETRY_COLUMNS) if c in carried
+                c
+                for c in (*SUN_COLUMNS, *OBSERVER_COLUMNS, *GEOMETRY_COLUMNS, *OBJECT_COLUMNS)
+                if c in carried
             ]
         )
         min_elevation, max_sun = args.min_elevation, args.max_sun_elevation

@@ -12,8 +12,10 @@ makes that input an error.
 
 The batch is resumable: inputs whose summary says "ok" are skipped unless --overwrite; all
 outputs are written atomically and a bad input is recorded as an error without stopping
-the batch. --workers runs inputs in parallel processes; --scheduler sends the same work to
-a Dask distributed cluster (workers must see the same file system).
+the batch. --modes adds the attitude mode (stabilised profile or tumbling, its probability
+and the fitted offsets; docs/inversion.md). --workers runs inputs in parallel processes;
+--scheduler sends the same work to a Dask distributed cluster (workers must see the same
+file system).
 """
 
 from __future__ import annotations
@@ -75,6 +77,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="search: find the initial state (around --q0/--omega0 when given, else "
         "globally); none: start the filters at --q0/--omega0 as given (default search)",
     )
+    parser.add_argument(
+        "--modes",
+        action="store_true",
+        help="also weigh stabilised attitude profiles (inertial, nadir, nadir yaw-steering, "
+        "sun-pointing, each with fitted offsets) against tumbling: summary keys "
+        "attitude_mode, attitude_mode_probability, attitude_offsets_deg",
+    )
     parser.add_argument("--particles", type=int, metavar="N", help="particle count (pf)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="parallel processes")
@@ -128,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "init": args.init,
         "drop_bad_rows": args.drop_bad_rows,
+        "modes": args.modes,
     }
     template = dict.fromkeys(SUMMARY_KEYS)
     template.update(method=args.method, shape_probabilities={}, modes=[])

@@ -1,12 +1,18 @@
 """Simulate a light curve of a library shape over the epochs of a geometry file.
 
-GEOMETRY is an observation file (CSV, Parquet) whose mag columns may be absent. The attitude
---q0/--omega0 holds at its first epoch; the body tumbles torque-free with the shape's
-inertia (or --inertia); the parts of an articulated shape follow their joints (Sun-tracking,
-or angles from the file's columns) and their angles are written as joint_<part>_deg. The
-output is an observation file with mag and mag_err filled and the truth columns q1 q2 q3 q4
-(inertial→body) and wx wy wz (rad/s) added. Epochs when the object is dark, or undetected
-under --ccd or --conditions, are dropped and counted in the file's header.
+GEOMETRY is an observation file (CSV, Parquet) whose mag columns may be absent. By default
+(--profile torque-free) the attitude --q0/--omega0 holds at its first epoch and the body
+tumbles torque-free with the shape's inertia (or --inertia). A stabilised --profile holds
+the attitude a control system would: inertial (fixed at --q0, default the identity), nadir
+(LVLH: body z to nadir, x along the velocity, y along the negative orbit normal; with
+--yaw-steering turned about z to keep the Sun in the body x-z plane; needs the obj_*
+columns that `lightcurve geometry` writes) or sun-pointing (body z to the Sun, x towards
+the celestial north pole), composed with a fixed --offset-deg ROLL,PITCH,YAW. The parts of
+an articulated shape follow their joints (Sun-tracking, or angles from the file's columns)
+and their angles are written as joint_<part>_deg. The output is an observation file with
+mag and mag_err filled and the truth columns q1 q2 q3 q4 (inertial→body) and wx wy wz
+(rad/s) added. Epochs when the object is dark, or undetected under --ccd or --conditions,
+are dropped and counted in the file's header.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
@@ -25,6 +31,7 @@ import numpy as np
 from lightcurve import io
 from lightcurve.commands._args import float_vector, inertia_tensor
 from lightcurve.conditions import load_conditions
+from lightcurve.profiles import PROFILES
 from lightcurve.render import SHADOW_MODES
 from lightcurve.simulate import CCDNoise, GaussianNoise, ObservingNoise, simulate
 from shapes import get_library
@@ -43,16 +50,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--q0",
         type=float_vector(4),
-        required=True,
         metavar="q1,q2,q3,q4",
-        help="attitude at the first epoch, scalar last, inertial→body",
+        help="attitude at the first epoch, scalar last, inertial→body (torque-free, required);"
+        " the fixed attitude of --profile inertial (default the identity)",
     )
     parser.add_argument(
         "--omega0",
         type=float_vector(3),
-        required=True,
         metavar="wx,wy,wz",
-        help="body rates at the first epoch, deg/s",
+        help="body rates at the first epoch, deg/s (torque-free, required)",
+    )
+    parser.add_argument(
+        "--profile",
+        choices=PROFILES,
+        default="torque-free",
+        help="attitude profile (default torque-free: tumbling from --q0/--omega0)",
+    )
+    parser.add_argument(
+        "--offset-deg",
+        type=float_vector(3),
+        metavar="ROLL,PITCH,YAW",
+        help="fixed 3-2-1 offset of a stabilised profile from its frame, deg (default 0,0,0)",
+    )
+    parser.add_argument(
+        "--yaw-steering",
+        action="store_true",
+        help="nadir profile: yaw about the nadir axis to keep the Sun in the body x-z plane",
     )
     parser.add_argument(
         "--inertia",
@@ -106,6 +129,16 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):
+        raise ValueError("--profile torque-free needs --q0 and --omega0")
+    if args.profile != "torque-free" and args.omega0 is not None:
+        raise ValueError(f"--omega0 does not apply to --profile {args.profile}")
+    if args.profile not in ("torque-free", "inertial") and args.q0 is not None:
+        raise ValueError(f"--q0 does not apply to --profile {args.profile}")
+    if args.yaw_steering and args.profile != "nadir":
+        raise ValueError("--yaw-steering applies to --profile nadir only")
+    if args.offset_deg is not None and args.profile == "torque-free":
+        raise ValueError("--offset-deg applies to stabilised profiles only")
     geometry = io.read(args.geometry, require_magnitudes=False)
     shape = get_library(args.library).load(
         args.shape, visibility=args.shadows != "none", articulated=True
@@ -124,11 +157,14 @@ def run(args: argparse.Namespace) -> int:
         geometry,
         shape,
         args.q0,
-        np.deg2rad(args.omega0),
+        None if args.omega0 is None else np.deg2rad(args.omega0),
         inertia=args.inertia,
         noise=noise,
         shadows=args.shadows,
         seed=args.seed,
+        profile=args.profile,
+        offset_deg=args.offset_deg,
+        yaw_steering=args.yaw_steering,
     )
     io.write(result, args.out)
     notes = [
