@@ -651,7 +651,7 @@ def period_scan(
         chi2[first : first + len(chunk)] = [s.chi2 for s in best[first:]]
         rejected[first : first + len(chunk)] = result.stopped[rows]
         report(first + len(chunk))
-        logger.debug(
+        logger.info(
             "period scan: %d/%d periods, %d fits stopped early",
             first + len(chunk),
             len(periods),
