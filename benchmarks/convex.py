@@ -555,7 +555,7 @@ def main() -> None:
         help="DAMIT's convexinv distribution (folder with convexinv/Makefile)",
     )
     parser.add_argument(
-        "--every", type=float, default=25.0, help="days between simulated nights (simulated)"
+        "--every", type=float, default=50.0, help="days between simulated nights (simulated)"
     )
     parser.add_argument("--poles", type=int, default=4, help="pole starts of the Ariadne scan")
     parser.add_argument("--coefficient", type=float, default=0.8, help="period-step coefficient")
