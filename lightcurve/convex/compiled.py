@@ -106,18 +106,19 @@ class CompiledModel:
     def _brightness(self, params: np.ndarray) -> np.ndarray:
         areas, poles, scalars = self._kernel_inputs(params)
         out = np.empty((len(params), len(self.seconds)))
-        kernels.brightness(
+        kernels.brightness(*self._geometry(areas), poles, scalars, out)
+        return out
+
+    def _geometry(self, areas: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The kernels' first arguments: epochs, directions, phase angles, facets."""
+        return (
             self.seconds,
             self.sun,
             self.earth,
             self.alpha,
             self.normal_rows,
             areas.astype(self.dtype),
-            poles,
-            scalars,
-            out,
         )
-        return out
 
     def _normalise(self, brightness: np.ndarray, params: np.ndarray) -> np.ndarray:
         """Relative curves → ``L/⟨L⟩``; calibrated curves → ``e^s L``."""
@@ -196,17 +197,7 @@ class CompiledModel:
         scatter = self._scratch("scatter", (batch, n, len(self.facet_areas)), self.dtype)
         partials = self._scratch("partials", (batch, n, kernels.SPIN_PHASE_COLUMNS), np.float64)
         kernels.brightness_and_jacobian(
-            self.seconds,
-            self.sun,
-            self.earth,
-            self.alpha,
-            self.normal_rows,
-            areas.astype(self.dtype),
-            poles,
-            scalars,
-            brightness,
-            scatter,
-            partials,
+            *self._geometry(areas), poles, scalars, brightness, scatter, partials
         )
         if not lambert_free:
             partials[..., -1] = 0.0
