@@ -60,6 +60,7 @@ import dataclasses
 import json
 import math
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -131,6 +132,28 @@ def _timed(func, *args, **kwargs):
     return out, time.perf_counter() - start
 
 
+def _timed_cpu(func, *args, **kwargs):
+    """Result, wall seconds and CPU seconds of this process (all threads)."""
+    cpu = time.process_time()
+    out, wall = _timed(func, *args, **kwargs)
+    return out, wall, time.process_time() - cpu
+
+
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of the finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run_timed(command: list[str], env=None, stdin=None) -> tuple[float, float]:
+    """Wall and CPU seconds of one run of a process (its output discarded)."""
+    cpu = _children_cpu()
+    began = time.perf_counter()
+    with open(stdin) if stdin else open(os.devnull) as source:
+        subprocess.run(command, env=env, stdin=source, stdout=subprocess.DEVNULL, check=True)
+    return time.perf_counter() - began, _children_cpu() - cpu
+
+
 def ariadne_fit(data: Photometry, iterations: int, rtol: float) -> tuple[dict, object]:
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
     settings = ConvexSettings(max_iter=iterations, rtol=rtol)
@@ -155,7 +178,9 @@ def ariadne_fit(data: Photometry, iterations: int, rtol: float) -> tuple[dict, o
 
 def ariadne_scan(data: Photometry, poles: int, coefficient: float, refined: int) -> dict:
     light = SCAN_SETTINGS
-    scan, _ = _timed(period_scan, data, (5.70, 5.82), poles, light, step_coefficient=coefficient)
+    scan, _, cpu = _timed_cpu(
+        period_scan, data, (5.70, 5.82), poles, light, step_coefficient=coefficient
+    )
     minima = scan.local_minima(refined)
     final, seconds_refine = _timed(refine, minima, data, ConvexSettings())
     best = final[0]
@@ -169,6 +194,7 @@ def ariadne_scan(data: Photometry, poles: int, coefficient: float, refined: int)
         "step_coefficient": coefficient,
         "fits": len(scan.periods_h) * poles,
         "seconds": scan.seconds,
+        "cpu_seconds": cpu,
         "seconds_per_fit": scan.seconds / (len(scan.periods_h) * poles),
         "scan_minimum_period_h": scan.minimum().spin.period_h,
         "scan_minima_h": [m.spin.period_h for m in minima],
@@ -285,17 +311,6 @@ def itokawa(poles: int) -> dict:
     return out
 
 
-def _best_wall(command: list[str], repeat: int, cwd: Path | None = None, stdin=None) -> float:
-    """Best wall time (s) of ``repeat`` runs of a process."""
-    times = []
-    for _ in range(repeat):
-        began = time.perf_counter()
-        with open(stdin) if stdin else open(os.devnull) as source:
-            subprocess.run(command, cwd=cwd, stdin=source, stdout=subprocess.DEVNULL, check=True)
-        times.append(time.perf_counter() - began)
-    return min(times)
-
-
 def _damit_build(source: Path | None) -> Path | None:
     """DAMIT's ``convexinv`` and ``period_scan`` built in a temporary folder, or None."""
     if source is None or not (source / "convexinv" / "Makefile").exists():
@@ -316,7 +331,11 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     out: dict = {"load_average": os.getloadavg()}
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
     # In-process fit timed before torch runs (its idle OpenMP threads spin for a while).
-    timings = {"fit_in_process_seconds": min(_timed(fit, data, start)[1] for _ in range(repeat))}
+    runs = [_timed_cpu(fit, data, start)[1:] for _ in range(repeat)]
+    timings = {
+        "fit_in_process_seconds": min(r[0] for r in runs),
+        "fit_in_process_cpu_seconds": min(r[1] for r in runs),
+    }
     # Same solution as the torch engine (the model this replaces) in the same run.
     numba_fit = fit(data, start, ConvexSettings())[0]
     torch_fit, seconds_torch = _timed(fit, data, start, ConvexSettings(engine="torch"))
@@ -350,39 +369,31 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
         f"d = Photometry.from_observations([io.read({str(ARIADNE)!r})]); "
         "fit(d, SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(d.mjd.min())))"
     )
-    # Interleaved: each round runs every program once.
+    # Interleaved: each round runs every program once. CPU seconds (user + system) are
+    # reported with the wall times: on a shared machine they depend far less on the load.
+    programs = {
+        "command": (command, None),
+        "library_process": ([sys.executable, "-c", library], None),
+    }
+    if build is not None:
+        convexinv = [str(build / "convexinv" / "convexinv"), "-o", str(out_dir / "areas")]
+        convexinv += ["-p", str(out_dir / "par"), str(build / "input_convexinv")]
+        programs = {"convexinv": ([*convexinv, str(out_dir / "lcs")], str(ARIADNE)), **programs}
     rounds = []
     for _ in range(repeat):
         row = {}
-        if build is not None:
-            row["convexinv_seconds"] = _best_wall(
-                [
-                    str(build / "convexinv" / "convexinv"),
-                    "-o",
-                    str(out_dir / "areas"),
-                    "-p",
-                    str(out_dir / "par"),
-                    str(build / "input_convexinv"),
-                    str(out_dir / "lcs"),
-                ],
-                1,
-                stdin=str(ARIADNE),
-            )
-        started = time.perf_counter()
-        subprocess.run(command, env=env, stdout=subprocess.DEVNULL, check=True)
-        row["command_seconds"] = time.perf_counter() - started
-        started = time.perf_counter()
-        subprocess.run([sys.executable, "-c", library], env=env, check=True)
-        row["library_process_seconds"] = time.perf_counter() - started
+        for name, (argv, stdin) in programs.items():
+            wall, cpu = _run_timed(argv, env=env, stdin=stdin)
+            row[f"{name}_seconds"], row[f"{name}_cpu_seconds"] = wall, cpu
         rounds.append(row)
     for key in rounds[0]:
         timings[key] = min(r[key] for r in rounds)
     timings["rounds"] = rounds
     if build is not None:
-        c = timings["convexinv_seconds"]
-        timings["ratio_library_process_to_convexinv"] = timings["library_process_seconds"] / c
-        timings["ratio_command_to_convexinv"] = timings["command_seconds"] / c
-        timings["ratio_in_process_fit_to_convexinv"] = timings["fit_in_process_seconds"] / c
+        for kind in ("seconds", "cpu_seconds"):
+            c = timings[f"convexinv_{kind}"]
+            for name in ("library_process", "command", "fit_in_process"):
+                timings[f"ratio_{name}_to_convexinv_{kind}"] = timings[f"{name}_{kind}"] / c
     timings["baseline_command_seconds"] = BASELINE_SECONDS["ariadne_fit_command"]
     timings["ratio_command_to_baseline"] = (
         timings["command_seconds"] / BASELINE_SECONDS["ariadne_fit_command"]
@@ -393,13 +404,16 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     low, high, coefficient = (
         (float(v) for v in lines[0].split()[:3]) if lines else (5.7615, 5.7625, 0.8)
     )
-    scan, seconds_scan = _timed(period_scan, data, (low, high), 6, step_coefficient=coefficient)
+    scan, seconds_scan, cpu_scan = _timed_cpu(
+        period_scan, data, (low, high), 6, step_coefficient=coefficient
+    )
     final = refine(scan.local_minima(3), data, ConvexSettings())
     ours = {
         "range_h": [low, high],
         "periods": len(scan.periods_h),
         "pole_starts": 6,
         "scan_seconds": seconds_scan,
+        "scan_cpu_seconds": cpu_scan,
         "refined_minimum_period_h": final[0].spin.period_h,
         "refined_minimum_pole_deg": [
             math.degrees(final[0].spin.lambda_rad),
@@ -407,23 +421,14 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
         ],
     }
     if build is not None:
-        started = time.perf_counter()
-        with open(ARIADNE) as light_curves:
-            subprocess.run(
-                [
-                    str(build / "convexinv" / "period_scan"),
-                    str(build / "input_period_scan"),
-                    str(out_dir / "periods"),
-                ],
-                stdin=light_curves,
-                stdout=subprocess.DEVNULL,
-                check=True,
-            )
-        ours["period_scan_c_seconds"] = time.perf_counter() - started
+        period_scan_c = [str(build / "convexinv" / "period_scan"), str(build / "input_period_scan")]
+        wall, cpu = _run_timed([*period_scan_c, str(out_dir / "periods")], stdin=str(ARIADNE))
+        ours["period_scan_c_seconds"], ours["period_scan_c_cpu_seconds"] = wall, cpu
         rows = [line.split() for line in (out_dir / "periods").read_text().splitlines() if line]
         best = min(rows, key=lambda r: float(r[1]))
         ours["period_scan_c_minimum_period_h"] = float(best[0])
-        ours["ratio_ours_to_period_scan_c"] = seconds_scan / ours["period_scan_c_seconds"]
+        ours["ratio_ours_to_period_scan_c"] = seconds_scan / wall
+        ours["ratio_ours_to_period_scan_c_cpu"] = cpu_scan / cpu
     out["period_scan"] = ours
     return out
 
@@ -514,7 +519,7 @@ def simulated_set(every_days: float) -> tuple[Photometry, SpinState]:
 def simulated(every_days: float) -> dict:
     (data, truth), seconds_sim = _timed(simulated_set, every_days)
     window = (truth.period_h - 0.01, truth.period_h + 0.01)
-    scan, seconds = _timed(period_scan, data, window, 6, step_coefficient=0.5)
+    scan, seconds, cpu = _timed_cpu(period_scan, data, window, 6, step_coefficient=0.5)
     final, seconds_refine = _timed(refine, scan.local_minima(5), data, ConvexSettings())
     best = final[0]
     lam, beta, _ = SIMULATED_SPIN
@@ -528,6 +533,7 @@ def simulated(every_days: float) -> dict:
         "pole_starts": 6,
         "periods_rejected": int(scan.rejected.sum()),
         "scan_seconds": seconds,
+        "scan_cpu_seconds": cpu,
         "refine_seconds": seconds_refine,
         "baseline_eros_scan_seconds": BASELINE_SECONDS["eros_scan"],
         "ratio_scan_to_baseline": seconds / BASELINE_SECONDS["eros_scan"],
