@@ -29,26 +29,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
-from filters.attitude import (
-    attitude_angle,
-    axis_angle_to_quaternion,
-    quaternion_conjugate,
-    quaternion_multiply,
-    rotate,
-)
-from filters.attitude._array import as_arrays
-from lightcurve.observations import Observations, validate_table
-from lightcurve.simulate import NoiseModel, simulate
-from shapes import FacetModel
+# The attitude core (filters.attitude, which loads its integrators) and the simulator are
+# imported by the functions that use them: spin states and pole matrices, all a convex fit
+# needs, load with numpy alone.
+if TYPE_CHECKING:  # the simulator (renderer, shapes, pandas) loads when simulate_rotator runs
+    from lightcurve.observations import Observations
+    from lightcurve.simulate import NoiseModel
+    from shapes import FacetModel
 
 __all__ = [
     "SpinState",
     "pole_distance",
+    "pole_matrix",
     "pole_quaternion",
     "pole_vector",
     "rotation_angle",
@@ -163,6 +159,8 @@ def pole_vector(lambda_rad: Any, beta_rad: Any) -> Any:
     -------
     (..., 3) array
     """
+    from filters.attitude._array import as_arrays
+
     xp, (lam, beta) = as_arrays(lambda_rad, beta_rad)
     cb = xp.cos(beta)
     return xp.stack([cb * xp.cos(lam), cb * xp.sin(lam), xp.sin(beta) + 0 * lam], axis=-1)
@@ -180,10 +178,50 @@ def pole_quaternion(lambda_rad: Any, beta_rad: Any) -> Any:
     -------
     (..., 4) array
     """
+    from filters.attitude import axis_angle_to_quaternion, quaternion_multiply
+    from filters.attitude._array import as_arrays
+
     xp, (lam, beta) = as_arrays(lambda_rad, beta_rad)
     q_lambda = axis_angle_to_quaternion(xp.asarray(_Z, dtype=lam.dtype), lam)
     q_beta = axis_angle_to_quaternion(xp.asarray(_Y, dtype=lam.dtype), math.pi / 2 - beta)
     return quaternion_multiply(q_beta, q_lambda)
+
+
+def pole_matrix(
+    lambda_rad: np.ndarray, beta_rad: np.ndarray, derivatives: bool = False
+) -> np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Matrix ``R_y(90° − β) R_z(λ)`` of :func:`pole_quaternion` in closed form (numpy).
+
+    ::
+
+        [[ sin β cos λ,  sin β sin λ,  −cos β],
+         [      −sin λ,        cos λ,       0],
+         [ cos β cos λ,  cos β sin λ,   sin β]]
+
+    (its last row is the pole). With ``derivatives`` also ``∂/∂λ`` and ``∂/∂β``.
+
+    Parameters
+    ----------
+    lambda_rad, beta_rad : (...) array
+        Pole longitude and latitude (rad), broadcastable.
+
+    Returns
+    -------
+    (..., 3, 3) numpy.ndarray, or three of them with ``derivatives``
+    """
+    lam, beta = np.broadcast_arrays(np.asarray(lambda_rad, float), np.asarray(beta_rad, float))
+    cl, sl, cb, sb = np.cos(lam), np.sin(lam), np.cos(beta), np.sin(beta)
+    zero = np.zeros_like(lam)
+
+    def matrix(*rows):
+        return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+    value = matrix((sb * cl, sb * sl, -cb), (-sl, cl, zero), (cb * cl, cb * sl, sb))
+    if not derivatives:
+        return value
+    d_lambda = matrix((-sb * sl, sb * cl, zero), (-cl, -sl, zero), (-cb * sl, cb * cl, zero))
+    d_beta = matrix((cb * cl, cb * sl, sb), (zero, zero, zero), (-sb * cl, -sb * sl, cb))
+    return value, d_lambda, d_beta
 
 
 def rotation_angle(state: SpinState, mjd: np.ndarray) -> np.ndarray:
@@ -207,6 +245,9 @@ def spin_attitude(lambda_rad: Any, beta_rad: Any, phi: Any) -> Any:
     -------
     (..., 4) array
     """
+    from filters.attitude import axis_angle_to_quaternion, quaternion_multiply
+    from filters.attitude._array import as_arrays
+
     xp, (lam, beta, phi) = as_arrays(lambda_rad, beta_rad, phi)
     q_phi = axis_angle_to_quaternion(xp.asarray(_Z, dtype=phi.dtype), phi)
     return quaternion_multiply(q_phi, pole_quaternion(lam, beta))
@@ -238,6 +279,14 @@ def spin_from_attitude(q: Any, omega_body: Any, mjd: float, atol: float = 1e-6) 
     ValueError
         If ω is not along the body z axis.
     """
+    from filters.attitude import (
+        attitude_angle,
+        axis_angle_to_quaternion,
+        quaternion_conjugate,
+        quaternion_multiply,
+        rotate,
+    )
+
     q = np.asarray(q, float)
     w = np.asarray(omega_body, float)
     rate = float(np.linalg.norm(w))
@@ -315,6 +364,11 @@ def simulate_rotator(
     Observations
         With ``mag``, ``mag_err``, truth columns, ``lightcurve_id`` and ``relative``.
     """
+    import pandas as pd
+
+    from lightcurve.observations import Observations, validate_table
+    from lightcurve.simulate import simulate
+
     rng = np.random.default_rng(seed)
     inertia = np.diag([1.0, 1.0, 2.0])
     tables = []

@@ -5,8 +5,9 @@ the pole (λ, β, ecliptic J2000 for DAMIT files) and the sidereal period to rel
 calibrated light curves together, with Lommel–Seeliger + c·Lambert scattering and the
 three-parameter phase function (DAMIT's convexinv defaults). Starting points:
 --pole/--period; without --pole, --poles N starts spread over the sphere (batched);
---period-range A B scans the period (every trial period from every pole start) and refines
-the deepest minima with the full model.
+--period-range A B scans the period (every trial period from every pole start; hopeless fits
+stopped early) and refines the deepest minima with the full model; the scan's progress shows
+on stderr (--progress, or -v for a log line per batch).
 
 Writes OUT/summary.json (``solutions``: best first, each with lambda_deg, beta_deg,
 period_h, rms, chi2, uncertainties), OUT/shape.obj (the best convex polyhedron, Minkowski
@@ -52,9 +53,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rows", type=int, default=8, help="Gaussian-sphere rows (8: 512)")
     parser.add_argument("--iterations", type=int, default=100, help="LM iterations at most (100)")
     parser.add_argument(
+        "--engine",
+        choices=("numba", "torch"),
+        default="numba",
+        help="model: compiled CPU kernels (numba, default) or torch (CUDA when available)",
+    )
+    parser.add_argument(
         "--compile",
         action="store_true",
-        help="torch.compile the facet x epoch kernel: 2x faster iterations after ~30 s",
+        help="with --engine torch: torch.compile its kernel (~30 s of compilation)",
+    )
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar of the period scan on stderr (default: when stderr is a terminal)",
     )
     parser.add_argument("--convexity", type=float, default=0.1, help="regularisation (0.1)")
     parser.add_argument(
@@ -90,6 +103,8 @@ def _settings(args: argparse.Namespace):
             raise ValueError(f"{name} must be at least {low}, got {value}")
     if args.iterations < 1 or args.poles < 1:
         raise ValueError("--iterations and --poles must be positive")
+    if args.compile and args.engine != "torch":
+        raise ValueError("--compile needs --engine torch")
     return ConvexSettings(
         degree=args.degree,
         order=args.degree,
@@ -99,6 +114,7 @@ def _settings(args: argparse.Namespace):
         lambert=args.lambert,
         free=("lambda", "beta", "rate", *extra),
         max_iter=args.iterations,
+        engine=args.engine,
         compile=args.compile,
     )
 
@@ -127,13 +143,16 @@ def run(args: argparse.Namespace) -> int:
             data,
             tuple(args.period_range),
             poles,
-            dataclasses.replace(SCAN_SETTINGS, compile=args.compile),
+            dataclasses.replace(SCAN_SETTINGS, engine=args.engine, compile=args.compile),
             epoch_mjd=epoch,
-            progress=sys.stderr.isatty(),
+            progress=sys.stderr.isatty() if args.progress is None else args.progress,
         )
         solutions = refine(scan.local_minima(args.refine), data, settings)
         atomic_write_table(
-            pd.DataFrame({"period_h": scan.periods_h, "chi2": scan.chi2}), args.out / "scan.csv"
+            pd.DataFrame(
+                {"period_h": scan.periods_h, "chi2": scan.chi2, "rejected": scan.rejected}
+            ),
+            args.out / "scan.csv",
         )
     else:
         starts = [SpinState(lam, beta, args.period * 3600.0, 0.0, epoch) for lam, beta in poles]
@@ -178,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
             "pole_starts": len(poles),
             "seconds": scan.seconds,
             "minimum_period_h": scan.minimum().spin.period_h,
+            "periods_rejected_early": int(scan.rejected.sum()),
         }
     atomic_write_json(args.out / "summary.json", json_ready(summary))
     s = best.summary()

@@ -1,16 +1,19 @@
 """Convex shape and spin inversion of light curves (Kaasalainen & Torppa 2001).
 
 Modules: :mod:`~lightcurve.convex.sphere` (the fixed Gaussian sphere and harmonics),
-:mod:`~lightcurve.convex.data` (light curves as fitted), :mod:`~lightcurve.convex.model`
-(batched model and Jacobian in torch), :mod:`~lightcurve.convex.optimize` (batched
-Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits, period scans, χ² profiles in period),
-:mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
+:mod:`~lightcurve.convex.data` (light curves as fitted), :mod:`~lightcurve.convex.compiled`
+and :mod:`~lightcurve.convex.kernels` (the batched model and its Jacobian: numpy and compiled
+numba kernels), :mod:`~lightcurve.convex.model` (the same model in torch: autograd, GPU),
+:mod:`~lightcurve.convex.layout` (the parameter vector), :mod:`~lightcurve.convex.optimize`
+(batched Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits, period scans, χ² profiles
+in period), :mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
 """
 
 from lightcurve.convex.data import Photometry
 from lightcurve.convex.fit import (
     ConvexSettings,
     ConvexSolution,
+    EarlyRejection,
     PeriodScan,
     fibonacci_poles,
     fit,
@@ -23,6 +26,7 @@ from lightcurve.convex.sphere import GaussianSphere
 __all__ = [
     "ConvexSettings",
     "ConvexSolution",
+    "EarlyRejection",
     "GaussianSphere",
     "PeriodScan",
     "Photometry",

@@ -16,12 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lightcurve.geometry import AU_M, unit_and_range
 from lightcurve.observations import Observations
 
 __all__ = ["Photometry"]
 
 _FLUX_PER_MAG = 0.4 * math.log(10.0)
+#: The astronomical unit (m), IAU 2012 resolution B2 (``lightcurve.geometry.AU_M``, not
+#: imported: that module loads the attitude core, which the fits do not need).
+AU_M = 149_597_870_700.0
+
+
+def _unit_and_range(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    length = np.linalg.norm(vectors, axis=-1)
+    return vectors / length[..., None], length
 
 
 @dataclass(frozen=True)
@@ -122,8 +129,8 @@ class Photometry:
         for obs in observations:
             ids = obs.lightcurve_ids
             flags = obs.relative
-            sun, sun_range = unit_and_range(obs.sun_vectors)
-            earth, earth_range = unit_and_range(obs.observer_vectors)
+            sun, sun_range = _unit_and_range(np.asarray(obs.sun_vectors, float))
+            earth, earth_range = _unit_and_range(np.asarray(obs.observer_vectors, float))
             intensity = 10.0 ** (-0.4 * obs.magnitudes)
             if obs.meta.get("source_format") != "damit":
                 intensity = intensity * (earth_range / AU_M) ** 2 * (sun_range / AU_M) ** 2

@@ -1,24 +1,26 @@
 """Convex shape + spin inversion: fits from pole starts, period scans, and their results.
 
 :func:`fit` runs Levenberg–Marquardt (:mod:`lightcurve.convex.optimize`) on the model of
-:mod:`lightcurve.convex.model` from one or several starting spin states at once; the shape
-starts from a sphere. :func:`period_scan` fits a grid of trial periods, each from several
-pole starts spread over the sphere, all batched, and returns χ²(P) with its minima
-(Kaasalainen, Torppa & Muinonen 2001, sec. 4; Ďurech et al. 2010 for DAMIT's settings).
+:mod:`lightcurve.convex.compiled` (or the torch model of :mod:`lightcurve.convex.model`) from
+one or several starting spin states at once; the shape starts from a sphere.
+:func:`period_scan` fits a grid of trial periods, each from several pole starts spread over
+the sphere, all batched, and returns χ²(P) with its minima (Kaasalainen, Torppa & Muinonen
+2001, sec. 4; Ďurech et al. 2010 for DAMIT's settings).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-import torch
+from threadpoolctl import threadpool_limits
 
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.model import ConvexModel
 from lightcurve.convex.optimize import levenberg_marquardt, scaled_inverse
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import SpinState
@@ -26,12 +28,15 @@ from lightcurve.spin import SpinState
 __all__ = [
     "ConvexSettings",
     "ConvexSolution",
+    "EarlyRejection",
     "PeriodScan",
     "fibonacci_poles",
     "fit",
     "period_profile",
     "period_scan",
 ]
+
+logger = logging.getLogger(__name__)
 
 _FREE_DEFAULT = ("lambda", "beta", "rate")
 
@@ -62,10 +67,16 @@ class ConvexSettings:
         this optimiser is not yet converged on Ariadne: it stops at 77 by ``rtol``).
     rtol : float
         Convergence threshold on the relative χ² decrease.
-    dtype : torch.dtype
-        Precision of the facet × epoch arrays.
+    dtype : str or dtype
+        Precision of the facet × epoch sums: ``"float64"`` or ``"float32"`` (numpy or torch
+        dtypes are accepted too).
+    engine : {"numba", "torch"}
+        ``"numba"``: :class:`~lightcurve.convex.compiled.CompiledModel` (CPU; its kernels
+        are compiled once per machine and cached). ``"torch"``:
+        :class:`~lightcurve.convex.model.ConvexModel` (CUDA when available).
     compile : bool
-        Compile the facet × epoch kernel (:class:`~lightcurve.convex.model.ConvexModel`).
+        ``torch.compile`` the torch model's facet × epoch kernel (``engine="torch"`` only;
+        about 30 s of compilation per process).
     """
 
     degree: int = 6
@@ -77,12 +88,100 @@ class ConvexSettings:
     free: tuple[str, ...] = _FREE_DEFAULT
     max_iter: int = 100
     rtol: float = 1e-7
-    dtype: torch.dtype = torch.float64
+    dtype: Any = "float64"
+    engine: str = "numba"
     compile: bool = False
+
+    def __post_init__(self) -> None:
+        if self.engine not in ("numba", "torch"):
+            raise ValueError(f"engine must be 'numba' or 'torch', got {self.engine!r}")
+        if self.compile and self.engine != "torch":
+            raise ValueError("compile=True needs engine='torch' (torch.compile)")
+        if self.numpy_dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype must be float32 or float64, got {self.dtype}")
+
+    @property
+    def numpy_dtype(self) -> np.dtype:
+        """:attr:`dtype` as a numpy dtype."""
+        return np.dtype(str(self.dtype).removeprefix("torch."))
 
     @property
     def sphere(self) -> GaussianSphere:
-        return GaussianSphere(self.nrows, self.degree, self.order)
+        return _sphere(self.nrows, self.degree, self.order)
+
+    def model(self, data: Photometry, epoch_mjd: float):
+        """The model of these settings for ``data`` with its rotation angle referred to
+        ``epoch_mjd``."""
+        if self.engine == "numba":
+            from lightcurve.convex.compiled import CompiledModel
+
+            return CompiledModel(
+                data, self.sphere, epoch_mjd, self.convexity_weight, self.numpy_dtype
+            )
+        import torch
+
+        from lightcurve.convex.model import ConvexModel
+
+        return _TorchModel(
+            ConvexModel(
+                data,
+                self.sphere,
+                epoch_mjd,
+                self.convexity_weight,
+                getattr(torch, self.numpy_dtype.name),
+                compile=self.compile,
+            )
+        )
+
+
+_SPHERES: dict[tuple[int, int, int], GaussianSphere] = {}
+
+
+def _sphere(nrows: int, degree: int, order: int) -> GaussianSphere:
+    """One Gaussian sphere (its triangulation and harmonics) per process and shape."""
+    key = (nrows, degree, order)
+    if key not in _SPHERES:
+        _SPHERES[key] = GaussianSphere(nrows, degree, order)
+    return _SPHERES[key]
+
+
+class _TorchModel:
+    """:class:`~lightcurve.convex.model.ConvexModel` seen through numpy arrays."""
+
+    def __init__(self, model) -> None:
+        import torch
+
+        self._torch, self.model = torch, model
+        self.layout, self.sphere, self.epoch_mjd = model.layout, model.sphere, model.epoch_mjd
+        self.has_calibrated = model.has_calibrated
+        self.brightness = self._array(model.brightness)
+        self.sigma = self._array(model.sigma)
+        self.relative_rows = self._array(model.relative_rows).astype(bool)
+
+    @staticmethod
+    def _array(tensor):
+        return None if tensor is None else tensor.detach().cpu().numpy().astype(float)
+
+    def _tensor(self, array):
+        return self._torch.as_tensor(
+            np.asarray(array), dtype=self._torch.float64, device=self.model.device
+        )
+
+    def evaluate(self, params, jacobian=True, lambert_free=False):
+        with self._torch.no_grad():
+            out = self.model.evaluate(self._tensor(params), jacobian, lambert_free)
+        return tuple(self._array(t) for t in out)
+
+    def residuals(self, params, jacobian=True, lambert_free=False):
+        with self._torch.no_grad():
+            out = self.model.residuals(self._tensor(params), jacobian, lambert_free)
+        return tuple(self._array(t) for t in out)
+
+    def areas(self, coefficients):
+        return self._array(self.model.areas(self._tensor(coefficients)))
+
+    def convexity(self, areas):
+        return self._array(self.model.convexity(self._tensor(areas).to(self.model.dtype)))
 
 
 @dataclass
@@ -156,44 +255,53 @@ _MAX_LATITUDE = math.pi / 2 - 1e-4
 def _canonical_pole(layout):
     lam_i, beta_i, phi_i = layout.index("lambda"), layout.index("beta"), layout.index("phi0")
 
-    def project(x: torch.Tensor) -> torch.Tensor:
+    def project(x):
+        if not isinstance(x, np.ndarray):  # a torch tensor
+            import torch
+
+            return torch.as_tensor(
+                project(x.detach().cpu().numpy()), dtype=x.dtype, device=x.device
+            )
         lam, beta = x[:, lam_i], x[:, beta_i]
         # Latitude beyond ±90°: the same axis with the longitude turned by 180°. That pole
         # frame is the old one turned by 180° about the axis, so φ0 − π keeps the attitude
         # (and the model) continuous across the pole.
-        beta = torch.atan2(torch.sin(beta), torch.cos(beta))
-        over = beta.abs() > math.pi / 2
-        beta = torch.where(over, torch.sign(beta) * math.pi - beta, beta)
-        x = x.clone()
-        x[:, lam_i] = torch.remainder(torch.where(over, lam + math.pi, lam), 2 * math.pi)
-        x[:, beta_i] = beta.clamp(-_MAX_LATITUDE, _MAX_LATITUDE)
-        x[:, phi_i] = torch.where(over, x[:, phi_i] - math.pi, x[:, phi_i])
+        beta = np.arctan2(np.sin(beta), np.cos(beta))
+        over = np.abs(beta) > math.pi / 2
+        beta = np.where(over, np.sign(beta) * math.pi - beta, beta)
+        x = x.copy()
+        x[:, lam_i] = np.remainder(np.where(over, lam + math.pi, lam), 2 * math.pi)
+        x[:, beta_i] = np.clip(beta, -_MAX_LATITUDE, _MAX_LATITUDE)
+        x[:, phi_i] = np.where(over, x[:, phi_i] - math.pi, x[:, phi_i])
         return x
 
     return project
 
 
-def _start_vectors(model: ConvexModel, settings: ConvexSettings, starts: Sequence[SpinState]):
+def _start_vectors(model, settings: ConvexSettings, starts: Sequence[SpinState]) -> np.ndarray:
     lay = model.layout
-    x0 = torch.zeros((len(starts), lay.size), dtype=torch.float64, device=model.device)
+    x0 = np.zeros((len(starts), lay.size))
     for row, s in enumerate(starts):
-        x0[row, lay.spin] = torch.tensor(
-            [
-                s.lambda_rad,
-                s.beta_rad,
-                s.rate,
-                s.phi0_rad + s.rate * (model.epoch_mjd - s.epoch_mjd) * 86400.0,
-            ],
-            dtype=torch.float64,
-        )
-    x0[:, lay.phase] = torch.tensor(settings.phase, dtype=torch.float64)
+        x0[row, lay.spin] = [
+            s.lambda_rad,
+            s.beta_rad,
+            s.rate,
+            s.phi0_rad + s.rate * (model.epoch_mjd - s.epoch_mjd) * 86400.0,
+        ]
+    x0[:, lay.phase] = settings.phase
     x0[:, lay.lambert] = settings.lambert
+    if model.has_calibrated:
+        # Start the calibrated curves' scale at its least-squares value for the sphere.
+        fitted, _ = model.evaluate(x0, jacobian=False)
+        w = ~model.relative_rows / model.sigma**2
+        scale = (w * fitted * model.brightness).sum(1) / (w * fitted**2).sum(1)
+        x0[:, lay.log_scale] = np.log(scale)
     return x0
 
 
-def _free_mask(model: ConvexModel, settings: ConvexSettings) -> torch.Tensor:
+def _free_mask(model, settings: ConvexSettings) -> np.ndarray:
     lay = model.layout
-    free = torch.zeros(lay.size, dtype=torch.bool, device=model.device)
+    free = np.zeros(lay.size, dtype=bool)
     # c_00 (the overall size) is fixed: relative curves do not see it and the scale of the
     # calibrated curves is the separate parameter log_scale.
     free[1 : lay.n_coefficients] = True
@@ -210,60 +318,54 @@ def _free_mask(model: ConvexModel, settings: ConvexSettings) -> torch.Tensor:
 
 
 def _solve(
-    data: Photometry,
-    starts: Sequence[SpinState],
+    model,
+    x0: np.ndarray,
+    free: np.ndarray,
     settings: ConvexSettings,
-    epoch_mjd: float,
+    stop: Callable[[int, np.ndarray, np.ndarray], np.ndarray] | None = None,
 ):
-    model = ConvexModel(
-        data,
-        settings.sphere,
-        epoch_mjd,
-        settings.convexity_weight,
-        settings.dtype,
-        compile=settings.compile,
-    )
-    x0 = _start_vectors(model, settings, starts)
-    free = _free_mask(model, settings)
     lambert_free = "c" in settings.free
-    if model.has_calibrated:
-        # Start the calibrated curves' scale at its least-squares value for the sphere.
-        with torch.no_grad():
-            fitted, _ = model.evaluate(x0, jacobian=False)
-            w = (1 - model.relative_rows) / model.sigma**2
-            scale = (w * fitted * model.brightness).sum(1) / (w * fitted**2).sum(1)
-            x0[:, model.layout.log_scale] = torch.log(scale.to(torch.float64))
+    if isinstance(model, _TorchModel):
+        residuals = lambda x, jacobian: model.residuals(x, jacobian, lambert_free)  # noqa: E731
+    else:
+        index = np.flatnonzero(free)
 
-    def residuals(x: torch.Tensor, jacobian: bool):
-        return model.residuals(x, jacobian, lambert_free)
+        def residuals(x, jacobian):
+            return model.residuals(x, jacobian, lambert_free, index)
 
-    result = levenberg_marquardt(
-        residuals,
-        x0,
-        free,
-        max_iter=settings.max_iter,
-        rtol=settings.rtol,
-        project=_canonical_pole(model.layout),
-    )
-    return model, free, result
+    # The compiled kernels run in parallel; the small matrix products around them are
+    # faster on one BLAS thread than contending with them (several times so on a busy
+    # machine).
+    with threadpool_limits(limits=1, user_api="blas"):
+        return levenberg_marquardt(
+            residuals,
+            x0,
+            free,
+            max_iter=settings.max_iter,
+            rtol=settings.rtol,
+            project=_canonical_pole(model.layout),
+            stop=stop,
+        )
 
 
 def _solutions(
-    model: ConvexModel, free: torch.Tensor, result, epoch_mjd: float
+    model, free: np.ndarray, result, epoch_mjd: float, rows: Sequence[int] | None = None
 ) -> list[ConvexSolution]:
+    """Solutions of the rows ``rows`` (default all) of an LM result."""
     lay = model.layout
-    with torch.no_grad():
-        fitted, _ = model.evaluate(result.x, jacobian=False)
-        areas = model.areas(result.x[:, : lay.n_coefficients])
-        dark = torch.linalg.vector_norm(model.convexity(areas), dim=1)
+    rows = np.arange(len(result.x)) if rows is None else np.asarray(rows, dtype=int)
+    x_rows = result.x[rows]
+    fitted, _ = model.evaluate(x_rows, jacobian=False)
+    areas = model.areas(x_rows[:, : lay.n_coefficients])
+    dark = np.linalg.norm(model.convexity(areas), axis=1)
     y = model.brightness
     data_chi2 = (((y - fitted) / model.sigma) ** 2).sum(1)
-    rms = torch.sqrt(((y - fitted) ** 2).mean(1))
+    rms = np.sqrt(((y - fitted) ** 2).mean(1))
     n, p = len(y), int(free.sum())
-    index = torch.nonzero(free).flatten().tolist()
+    index = np.flatnonzero(free).tolist()
     out = []
-    for row in range(len(result.x)):
-        x = result.x[row].cpu().numpy()
+    for i, row in enumerate(rows):
+        x = result.x[row].copy()
         lam, beta, rate, phi0 = (float(v) for v in x[lay.spin])
         sigma = _uncertainties(result.hessian[row], float(result.chi2[row]), n, p, index, lay, x)
         spin = SpinState(lam, beta, 2 * math.pi / rate, phi0 % (2 * math.pi), model.epoch_mjd)
@@ -271,14 +373,14 @@ def _solutions(
         out.append(
             ConvexSolution(
                 spin=spin,
-                chi2=float(data_chi2[row]),
-                rms=float(rms[row]),
+                chi2=float(data_chi2[i]),
+                rms=float(rms[i]),
                 coefficients=x[: lay.n_coefficients].copy(),
-                areas=areas[row].cpu().numpy().astype(float),
+                areas=areas[i].astype(float),
                 normals=model.sphere.normals,
-                dark_facet=float(dark[row]),
+                dark_facet=float(dark[i]),
                 sigma=sigma,
-                model=fitted[row].cpu().numpy().astype(float),
+                model=fitted[i].astype(float),
                 parameters=x,
                 iterations=int(result.iterations[row]),
                 converged=bool(result.converged[row]),
@@ -290,8 +392,8 @@ def _solutions(
 def _uncertainties(hessian, chi2, n, p, index, lay, x) -> dict[str, float]:
     """1σ of λ, β (deg), P (h) and the pole direction (deg) from ``χ²_ν (JᵀJ)⁻¹``."""
     try:
-        cov = scaled_inverse(hessian).cpu().numpy() * chi2 / max(n - p, 1)
-    except RuntimeError:
+        cov = scaled_inverse(hessian) * chi2 / max(n - p, 1)
+    except np.linalg.LinAlgError:
         return {}
     var = dict(zip(index, np.diag(cov), strict=True))
     out = {}
@@ -341,7 +443,9 @@ def fit(
     starts = [starts] if isinstance(starts, SpinState) else list(starts)
     if not starts:
         raise ValueError("no starting spin state")
-    model, free, result = _solve(data, starts, settings, data.mean_epoch)
+    model = settings.model(data, data.mean_epoch)
+    free = _free_mask(model, settings)
+    result = _solve(model, _start_vectors(model, settings, starts), free, settings)
     report = starts[0].epoch_mjd if epoch_mjd is None else float(epoch_mjd)
     return sorted(_solutions(model, free, result, report), key=lambda s: s.chi2)
 
@@ -356,6 +460,51 @@ def fibonacci_poles(count: int) -> list[tuple[float, float]]:
     return list(zip(lam.tolist(), beta.tolist(), strict=True))
 
 
+@dataclass(frozen=True)
+class EarlyRejection:
+    """Rule that ends the hopeless trial fits of a period scan early.
+
+    Every fit of a scan starts from a sphere and runs the same number of Levenberg–Marquardt
+    iterations, so fits are compared at equal iterations: after ``after`` iterations, a fit
+    whose χ² exceeds ``factor`` times the lowest χ² that any fit of the scan so far had
+    after the same number of iterations is stopped. The fits that end at the deepest minima
+    of χ²(P) stay close to that lowest χ² all along: on Ariadne and on a simulated
+    decades-long set (``benchmarks/convex.py``, ``rejection``), the fits ending within 1.5
+    times the scan's minimum never exceed it by more than a factor 1.6 after the third
+    iteration, so the default factor 3 leaves them a margin of two. Most fits are 5–10 times
+    above it by then and stop after three iterations instead of ten.
+
+    Periods whose best fit was stopped keep the χ² at which it stopped (an upper bound of
+    what the fit would have reached); :attr:`PeriodScan.rejected` flags them and
+    :meth:`PeriodScan.local_minima` does not report them.
+
+    Parameters
+    ----------
+    after : int
+        Iterations every fit runs before it may be stopped.
+    factor : float
+        Stop when χ² > factor × the lowest χ² at the same iteration (> 1).
+    """
+
+    after: int = 3
+    factor: float = 3.0
+
+    def __post_init__(self) -> None:
+        if self.after < 1 or not self.factor > 1:
+            raise ValueError(f"need after ≥ 1 and factor > 1, got {self.after}, {self.factor}")
+
+    def stop(self, iteration: int, chi2: np.ndarray, lowest: np.ndarray) -> np.ndarray:
+        """Fits to stop after ``iteration`` iterations, given their χ².
+
+        ``lowest[iteration]`` is the lowest χ² of the scan so far after that many
+        iterations; it is updated with these fits' values first.
+        """
+        lowest[iteration] = min(lowest[iteration], float(np.min(chi2)))
+        if iteration < self.after:
+            return np.zeros(len(chi2), dtype=bool)
+        return chi2 > self.factor * lowest[iteration]
+
+
 @dataclass
 class PeriodScan:
     """χ² against trial period.
@@ -365,26 +514,36 @@ class PeriodScan:
     periods_h : (n,) float
         Trial periods (h).
     chi2 : (n,) float
-        Best χ² over the pole starts at each trial period.
+        Best χ² over the pole starts at each trial period (scaled to the full data when
+        the scan ran on thinned data).
     best : list of ConvexSolution
         The best fit of each trial period.
     seconds : float
         Wall-clock time of the scan.
+    rejected : (n,) bool
+        Periods whose best fit was stopped by the :class:`EarlyRejection` rule (their χ² is
+        where it stopped, above the rule's factor times the minimum).
     """
 
     periods_h: np.ndarray
     chi2: np.ndarray
     best: list[ConvexSolution]
     seconds: float
+    rejected: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.rejected is None:
+            self.rejected = np.zeros(len(self.periods_h), dtype=bool)
 
     def minimum(self) -> ConvexSolution:
         """The global minimum."""
         return self.best[int(np.argmin(self.chi2))]
 
     def local_minima(self, count: int = 5) -> list[ConvexSolution]:
-        """The ``count`` deepest local minima of χ²(P), best first."""
+        """The ``count`` deepest local minima of χ²(P), best first (rejected periods are
+        none)."""
         c = self.chi2
-        is_min = np.r_[True, c[1:] <= c[:-1]] & np.r_[c[:-1] <= c[1:], True]
+        is_min = np.r_[True, c[1:] <= c[:-1]] & np.r_[c[:-1] <= c[1:], True] & ~self.rejected
         rows = np.flatnonzero(is_min)
         rows = rows[np.argsort(c[rows])][:count]
         return [self.best[r] for r in rows]
@@ -406,16 +565,18 @@ def period_scan(
     settings: ConvexSettings | None = None,
     step_coefficient: float = 0.5,
     thin: int | None = 20,
-    batch_size: int = 48,
+    batch_size: int | None = None,
     epoch_mjd: float | None = None,
-    progress: bool = False,
+    progress: bool | Callable[[int, int], None] = False,
+    reject: EarlyRejection | None = EarlyRejection(),
 ) -> PeriodScan:
     """χ² against trial period, each period fitted from several pole starts.
 
-    Every trial period is fitted from every pole start (the shape from a sphere), all of
-    them batched; the scan's χ² at a period is the best over the pole starts, so that a
-    wrong local minimum in pole does not show as a false minimum in period (DAMIT's
-    ``period_scan``). The trial periods are ``period_step`` apart.
+    Every trial period is fitted from every pole start (the shape from a sphere), batched;
+    the scan's χ² at a period is the best over the pole starts, so that a wrong local
+    minimum in pole does not show as a false minimum in period (DAMIT's ``period_scan``).
+    The trial periods are ``period_step`` apart. The model (its data arrays, the Gaussian
+    sphere and harmonics) is built once for the whole scan.
 
     Parameters
     ----------
@@ -432,13 +593,17 @@ def period_scan(
     thin : int or None
         Fit at most this many evenly spaced points per light curve (None: all). χ² is
         scaled back to the full number of points.
-    batch_size : int
-        Fits (periods × poles) run together.
+    batch_size : int, optional
+        Fits run together (rounded to whole periods; default about 40 000 facet sums ×
+        epochs per batch).
     epoch_mjd : float, optional
         Epoch t0 at which the solutions report φ0 (default: the first epoch); the fits
         themselves refer the rotation to the data's mean epoch, as :func:`fit`.
-    progress : bool
-        Show a tqdm progress bar.
+    progress : bool or callable
+        True: a tqdm progress bar on stderr; a callable is called as
+        ``progress(periods_done, periods_total)`` after every batch.
+    reject : EarlyRejection or None
+        Early rejection of hopeless fits (None: every fit runs to the end).
 
     Returns
     -------
@@ -455,33 +620,69 @@ def period_scan(
     periods = np.array(periods)
     fitted = data.thinned(thin) if thin else data
     epoch = float(data.mjd.min()) if epoch_mjd is None else float(epoch_mjd)
-    starts = [
-        SpinState(lam, beta, p * 3600.0, 0.0, epoch) for p in periods for lam, beta in pole_starts
-    ]
-    solutions: list[ConvexSolution] = []
     began = time.perf_counter()
-    chunks = range(0, len(starts), batch_size)
-    if progress:
-        from tqdm import tqdm
+    model = settings.model(fitted, data.mean_epoch)
+    free = _free_mask(model, settings)
+    n_poles = len(pole_starts)
+    if batch_size is None:
+        batch_size = max(1, 40_000 // len(fitted))
+    per_batch = max(1, batch_size // n_poles)
+    report = _progress(progress, len(periods))
+    lowest = np.full(settings.max_iter + 1, np.inf)  # lowest χ² after each iteration
+    chi2 = np.empty(len(periods))
+    rejected = np.zeros(len(periods), dtype=bool)
+    best: list[ConvexSolution] = []
+    for first in range(0, len(periods), per_batch):
+        chunk = periods[first : first + per_batch]
+        starts = [
+            SpinState(lam, beta, p * 3600.0, 0.0, epoch) for p in chunk for lam, beta in pole_starts
+        ]
+        stop = None
+        if reject is not None:
 
-        chunks = tqdm(chunks, desc="period scan", unit="batch")
-    for start in chunks:
-        model, free, result = _solve(
-            fitted, starts[start : start + batch_size], settings, data.mean_epoch
+            def stop(iteration, values, active):
+                return reject.stop(iteration, values, lowest)
+
+        result = _solve(model, _start_vectors(model, settings, starts), free, settings, stop)
+        values = result.chi2.reshape(len(chunk), n_poles)
+        pick = np.argmin(values, axis=1)
+        rows = np.arange(len(chunk)) * n_poles + pick
+        best += _solutions(model, free, result, epoch, rows)
+        chi2[first : first + len(chunk)] = [s.chi2 for s in best[first:]]
+        rejected[first : first + len(chunk)] = result.stopped[rows]
+        report(first + len(chunk))
+        logger.info(
+            "period scan: %d/%d periods, %d fits stopped early",
+            first + len(chunk),
+            len(periods),
+            int(result.stopped.sum()),
         )
-        solutions += _solutions(model, free, result, epoch)
+    report(None)
     scale = len(data) / len(fitted)
-    per_period = [
-        solutions[i * len(pole_starts) : (i + 1) * len(pole_starts)] for i in range(len(periods))
-    ]
-    best = [min(group, key=lambda s: s.chi2) for group in per_period]
-    return PeriodScan(
-        periods, scale * np.array([b.chi2 for b in best]), best, time.perf_counter() - began
-    )
+    return PeriodScan(periods, scale * chi2, best, time.perf_counter() - began, rejected)
+
+
+def _progress(progress: bool | Callable[[int, int], None], total: int):
+    """``report(done)`` for :func:`period_scan` (``report(None)`` at the end)."""
+    if callable(progress):
+        return lambda done: None if done is None else progress(done, total)
+    if not progress:
+        return lambda done: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc="period scan", unit="period")
+
+    def report(done):
+        if done is None:
+            bar.close()
+        else:
+            bar.update(done - bar.n)
+
+    return report
 
 
 #: The light model of :func:`period_scan`.
-SCAN_SETTINGS = ConvexSettings(degree=3, order=3, nrows=3, max_iter=10, dtype=torch.float32)
+SCAN_SETTINGS = ConvexSettings(degree=3, order=3, nrows=3, max_iter=10, dtype="float32")
 
 
 def refine(
@@ -527,31 +728,15 @@ def period_profile(
         One per period, in the order of ``periods_h``.
     """
     settings = settings or ConvexSettings()
-    model = ConvexModel(
-        data,
-        settings.sphere,
-        data.mean_epoch,
-        settings.convexity_weight,
-        settings.dtype,
-        compile=settings.compile,
-    )
+    model = settings.model(data, data.mean_epoch)
     lay = model.layout
     if len(solution.parameters) != lay.size:
         raise ValueError("solution and settings have different spherical-harmonics degrees")
     periods = np.asarray(periods_h, dtype=float)
-    x0 = torch.as_tensor(solution.parameters, dtype=torch.float64, device=model.device)
-    x0 = x0.repeat(len(periods), 1)
+    x0 = np.repeat(np.asarray(solution.parameters, float)[None], len(periods), axis=0)
     x0[:, lay.index("phi0")] = solution.spin.at_epoch(data.mean_epoch).phi0_rad
-    x0[:, lay.index("rate")] = torch.as_tensor(2 * math.pi / (periods * 3600.0))
+    x0[:, lay.index("rate")] = 2 * math.pi / (periods * 3600.0)
     free = _free_mask(model, settings)
     free[lay.index("rate")] = False
-    lambert_free = "c" in settings.free
-    result = levenberg_marquardt(
-        lambda x, jacobian: model.residuals(x, jacobian, lambert_free),
-        x0,
-        free,
-        max_iter=settings.max_iter,
-        rtol=settings.rtol,
-        project=_canonical_pole(lay),
-    )
+    result = _solve(model, x0, free, settings)
     return _solutions(model, free, result, solution.spin.epoch_mjd)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize
 from scipy.spatial import HalfspaceIntersection
+from threadpoolctl import threadpool_limits
 
 from shapes import FacetModel
 from shapes.mass import solid_properties
@@ -159,15 +160,22 @@ def minkowski_polyhedron(
         return value, grad
 
     h = np.ones(len(normals))
-    for _ in range(5):
-        result = minimize(
-            objective, h, jac=True, method="L-BFGS-B", options={"gtol": tol, "maxiter": max_iter}
-        )
-        h = result.x
-        vertices, _, _ = polytope(normals, h - normals @ state["center"])
-        state["center"] = state["center"] + vertices.mean(axis=0)
-        if result.success:
-            break
+    # L-BFGS's vector operations are small (one per facet): on one BLAS thread they take
+    # less than half the CPU time of two threads handing them back and forth.
+    with threadpool_limits(limits=1, user_api="blas"):
+        for _ in range(5):
+            result = minimize(
+                objective,
+                h,
+                jac=True,
+                method="L-BFGS-B",
+                options={"gtol": tol, "maxiter": max_iter},
+            )
+            h = result.x
+            vertices, _, _ = polytope(normals, h - normals @ state["center"])
+            state["center"] = state["center"] + vertices.mean(axis=0)
+            if result.success:
+                break
     vertices, faces, _ = polytope(normals, h - normals @ state["center"])
     mass = solid_properties(vertices[faces])
     vertices = vertices - mass.center_of_mass

@@ -24,7 +24,6 @@ Kaasalainen & Torppa 2001, sec. 3.3; σ̃ the median data error) as extra residu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -34,57 +33,14 @@ from brdf import phase_function
 from brdf._geometry import COSINE_FLOOR
 from filters.attitude import attitude_matrix, axis_angle_to_quaternion, cross_matrix, rotate
 from lightcurve.convex.data import Photometry
+from lightcurve.convex.layout import SECONDS_PER_DAY, ParameterLayout
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import pole_quaternion
 
 __all__ = ["ConvexModel", "ParameterLayout"]
 
-SECONDS_PER_DAY = 86400.0
-SPIN_NAMES = ("lambda", "beta", "rate", "phi0")
-PHASE_NAMES = ("a", "d", "k")
 #: Facet × epoch elements per block of :meth:`ConvexModel._facet_sums` (≈ 1 MB in float64).
 _BLOCK = 131_072
-
-
-@dataclass(frozen=True)
-class ParameterLayout:
-    """Positions of the parameters in a parameter vector.
-
-    ``[c_0 … c_{K−1}, λ, β, ω, φ0, a, d, k, c_lambert, log_scale]`` — harmonics
-    coefficients, pole longitude/latitude (rad), rotation rate (rad/s), rotation angle at t0
-    (rad), phase-function parameters (d in rad), Lambert weight, log of the scale of the
-    calibrated curves.
-    """
-
-    n_coefficients: int
-
-    @property
-    def size(self) -> int:
-        return self.n_coefficients + 9
-
-    @property
-    def spin(self) -> slice:
-        return slice(self.n_coefficients, self.n_coefficients + 4)
-
-    @property
-    def phase(self) -> slice:
-        return slice(self.n_coefficients + 4, self.n_coefficients + 7)
-
-    @property
-    def lambert(self) -> int:
-        return self.n_coefficients + 7
-
-    @property
-    def log_scale(self) -> int:
-        return self.n_coefficients + 8
-
-    def index(self, name: str) -> int:
-        """Position of a named scalar parameter (``lambda``, ``beta``, ``rate``, ``phi0``,
-        ``a``, ``d``, ``k``, ``c``, ``log_scale``)."""
-        names = (*SPIN_NAMES, *PHASE_NAMES, "c", "log_scale")
-        if name not in names:
-            raise KeyError(f"unknown parameter {name!r}; known: {', '.join(names)}")
-        return self.n_coefficients + names.index(name)
 
 
 class ConvexModel:

@@ -16,8 +16,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.spatial import ConvexHull
-from scipy.special import sph_harm_y
 
 __all__ = ["GaussianSphere", "harmonic_count", "real_harmonics"]
 
@@ -45,6 +43,8 @@ def real_harmonics(directions: np.ndarray, degree: int, order: int) -> np.ndarra
     (F, K) numpy.ndarray
         ``K = harmonic_count(degree, order)``; column 0 is the constant ``1/√(4π)``.
     """
+    from scipy.special import sph_harm_y
+
     if not 0 <= order <= degree:
         raise ValueError(f"need 0 ≤ order ≤ degree, got degree {degree}, order {order}")
     d = np.asarray(directions, float)
@@ -102,6 +102,8 @@ class GaussianSphere:
 
     @cached_property
     def _triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        from scipy.spatial import ConvexHull
+
         hull = ConvexHull(self.vertices)
         faces = hull.simplices.copy()
         tri = self.vertices[faces]
