@@ -1,12 +1,12 @@
-"""Monte Carlo studies of the photometric inversion (issue 6, acceptance 1–3) and the
-particle-filter speed study (acceptance 5). Prints JSON.
+"""Monte Carlo studies of the photometric inversion (UKF, MMAE bank, particle filter) and the
+particle-filter speed study. Prints JSON.
 
-    python -m benchmarks.inversion ukf  [--runs 50] [--seed 0]        # acceptance 1
-    python -m benchmarks.inversion mmae [--runs 30] [--seed 0]        # acceptance 2, in bank
+    python -m benchmarks.inversion ukf  [--runs 50] [--seed 0]        # UKF, known shape
+    python -m benchmarks.inversion mmae [--runs 30] [--seed 0]        # MMAE, truth in the bank
     python -m benchmarks.inversion mmae-outside [--runs 30] [--seed 0] [--extra itokawa,bennu]
-    python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # acceptance 3
-    python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # acceptance 3, box modes
-    python -m benchmarks.inversion speed                               # acceptance 5
+    python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # PF, uniform prior
+    python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # PF, box symmetry modes
+    python -m benchmarks.inversion speed                               # PF speed
     python -m benchmarks.inversion main-job [--files box_wing_tumbling,...]  # README job
     python -m benchmarks.inversion propagation                         # RK4 kernels
 
@@ -42,7 +42,7 @@ from lightcurve.inversion_study import (
 from lightcurve.measurement import PhotometricModel
 from shapes import get_library
 
-#: Bank of acceptance 2: six library satellites; truths outside it are the two asteroids
+#: Bank of the MMAE study: six library satellites; truths outside it are the two asteroids
 #: (scaled models would still be far off) and each satellite left out in turn is tested by
 #: ``mmae-outside`` against the other five plus the asteroids.
 BANK = ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing")

@@ -2,7 +2,7 @@
 
 For effective facets ``i`` (unit normal ``n_i`` in the body frame, area ``A_i``, BRDF
 ``ρ_i``) and unit body-frame vectors to the Sun ``L = A(q) ŝ`` and to the observer
-``V = A(q) ô`` at observer range ``d`` (DESIGN.md, "The photometric measurement model"):
+``V = A(q) ô`` at observer range ``d`` (docs/rendering.md, "The measurement model"):
 
 ``F_obs / F_sun = (1 AU / r_sun)² Σ_i ρ_i(n_i, L, V) A_i (n_i·L)(n_i·V) lit_i seen_i / d²``,
 ``m = −26.74 − 2.5 log10(F_obs / F_sun)``.
@@ -61,7 +61,7 @@ __all__ = [
     "magnitude_to_flux",
 ]
 
-#: Apparent magnitude of the Sun at 1 AU (V band, DESIGN.md).
+#: Apparent magnitude of the Sun at 1 AU (V band).
 SUN_MAGNITUDE = -26.74
 SHADOW_MODES = ("auto", "none", "table", "exact")
 BACKENDS = ("auto", "torch")

@@ -3,7 +3,7 @@
 A :class:`Material` names a reflectance model of the ``brdf`` package by its registry name and
 carries that model's parameters; ``shapes`` does not import ``brdf`` (the renderer in
 ``lightcurve`` turns a material into a BRDF). The parameter names are the interface of
-``docs/brdf.md`` / DESIGN.md ("Reflectance models: the exact forms"):
+``docs/brdf.md`` ("The models"):
 
 =====================  =============================  =======================
 model                  required parameters            optional parameters

@@ -1,4 +1,4 @@
-"""Rotation-period search over one or more observation files (seed 002 sec. 2.1).
+"""Rotation-period search over one or more observation files (Gou et al. 2016, sec. 2.1).
 
 A multi-harmonic Fourier series (orders 2-6, chosen by BIC) with one zero point per light
 curve is fitted at every trial period; the χ² minimum is the period, its curvature gives the

@@ -1,4 +1,4 @@
-"""Coplanar merging (acceptance 2), tangents and the can-be-shadowed flags."""
+"""Coplanar merging, tangents and the can-be-shadowed flags."""
 
 import numpy as np
 import pytest

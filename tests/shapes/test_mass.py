@@ -1,4 +1,4 @@
-"""Mass properties against closed forms (acceptance 1) and the principal-axis frame."""
+"""Mass properties against closed forms and the principal-axis frame."""
 
 import numpy as np
 import pytest
