@@ -1,6 +1,5 @@
 """Two-lobe model: hand-computed values, its one-lobe and Lambert limits, the energy bound."""
 
-
 import numpy as np
 import pytest
 
