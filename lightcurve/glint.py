@@ -37,6 +37,7 @@ __all__ = [
     "GlintDetection",
     "PanelNormal",
     "detect_glints",
+    "detection_threshold",
     "glint_period",
     "panel_normal",
 ]
@@ -107,6 +108,9 @@ class GlintDetection:
     window_s: float
     baseline: np.ndarray = field(repr=False)
     degree: int = 2
+    excess_sigma: np.ndarray = field(default=None, repr=False)
+    """Brightening of every point above the baseline in units of its σ (the detector fires
+    where it exceeds ``threshold_sigma``)."""
 
 
 def detect_glints(
@@ -165,8 +169,9 @@ def detect_glints(
     baseline, leverage, scale = _baseline(times, mag, errors, ids, window, degree)
     noise = scale * errors * np.sqrt(1.0 + leverage)
     residual = baseline - mag  # > 0: brighter than the baseline
-    z = _threshold(false_alarm, len(mag))
-    candidate = residual > z * noise
+    z = detection_threshold(false_alarm, len(mag))
+    excess_sigma = residual / noise
+    candidate = excess_sigma > z
     glints = []
     sun, observer = observations.sun_vectors, observations.observer_vectors
     typical = float(np.median(scale * errors))
@@ -174,10 +179,10 @@ def detect_glints(
         glints.append(
             _describe(rows, times, residual, typical, sun, observer, observations.mjd, cadence)
         )
-    return GlintDetection(glints, z, typical, false_alarm, window, baseline, degree)
+    return GlintDetection(glints, z, typical, false_alarm, window, baseline, degree, excess_sigma)
 
 
-def _threshold(false_alarm: float, n: int) -> float:
+def detection_threshold(false_alarm: float, n: int) -> float:
     """Per-point threshold (in σ) giving a per-curve false-alarm probability ≤ ``false_alarm``.
 
     Bonferroni: each of the ``n`` points may exceed it with probability ``false_alarm/n``.
