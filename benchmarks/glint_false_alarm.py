@@ -66,21 +66,21 @@ def glint_free_curve(rng: np.random.Generator) -> tuple[Observations, float]:
             continue
         sun = _unit(geometry.sun_vectors)
         view = _unit(geometry.observer_vectors)
-        normal = _unit(rng.normal(size=3))
-        panel = np.clip(sun @ normal, 0, None) * np.clip(view @ normal, 0, None) / math.pi
         alpha = np.arccos(np.clip(np.sum(sun * view, axis=1), -1, 1))
         sphere = (2 / (3 * math.pi**2)) * (np.sin(alpha) + (math.pi - alpha) * np.cos(alpha))
-        weight = rng.uniform(0.0, 1.0)
-        flux = weight * panel + (1 - weight) * sphere
-        if weight > 0 and np.min(panel) <= 0:
-            continue
-        mag = -2.5 * np.log10(flux)
-        span = float(np.ptp(mag))
-        if not 0.3 <= span <= 4.0:
-            continue
-        noisy = mag + rng.normal(0.0, NOISE_MAG, len(mag))
-        table = geometry.table.assign(mag=noisy, mag_err=NOISE_MAG)
-        return Observations(table, geometry.metadata), span
+        for _ in range(50):  # objects for this night until one bends as required
+            normal = _unit(rng.normal(size=3))
+            panel = np.clip(sun @ normal, 0, None) * np.clip(view @ normal, 0, None) / math.pi
+            weight = rng.uniform(0.0, 1.0)
+            if np.min(panel) <= 0:
+                continue
+            mag = -2.5 * np.log10(weight * panel + (1 - weight) * sphere)
+            span = float(np.ptp(mag))
+            if not 0.3 <= span <= 4.0:
+                continue
+            noisy = mag + rng.normal(0.0, NOISE_MAG, len(mag))
+            table = geometry.table.assign(mag=noisy, mag_err=NOISE_MAG)
+            return Observations(table, geometry.metadata), span
 
 
 def main(argv: list[str] | None = None) -> None:
