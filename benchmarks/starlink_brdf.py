@@ -7,8 +7,10 @@ horizon rather than a measurement; they are excluded. Each model is fitted in lo
 (`brdf.fit`), Ashikhmin–Shirley isotropically (``nv`` tied to ``nu``: in-plane data do not
 constrain anisotropy).
 
-Prints JSON (RMS log10 residuals per model and per incidence, parameters with 1σ, timings,
-machine info) and writes the polar plots ``docs/figures/starlink_<material>_brdf.png``.
+Prints JSON (RMS log10 residuals per model and per incidence, the residuals at the points
+within 1° of the mirror direction, parameters with 1σ, how much better the two-lobe model fits
+than the best one-lobe model, timings, machine info) and writes the polar plots
+``docs/figures/starlink_<material>_brdf.png``.
 
 Usage (from the repository root): ``python -m benchmarks.starlink_brdf [--figures DIR]
 [--starts N]``
@@ -43,7 +45,10 @@ STYLES = {
     "cook-torrance": ("tab:red", "-"),
     "ashikhmin-shirley": ("tab:green", "--"),
     "lommel-seeliger": ("tab:purple", "-."),
+    "two-lobe": ("tab:cyan", "-"),
 }
+ONE_LOBE = ("phong", "cook-torrance", "ashikhmin-shirley")
+MIRROR_DEG = 1.0  # "near the mirror direction": within this angle of it
 LOG_FLOOR = -3.5  # plot radius 0 is 10^LOG_FLOOR sr⁻¹
 
 
@@ -59,6 +64,25 @@ def per_incidence_rms(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str
     return {
         f"{angle:g}": float(np.sqrt(np.mean(result.residuals[incidence == angle] ** 2)))
         for angle in np.unique(incidence)
+    }
+
+
+def mirror_distance_deg(table: brdf.BRDFTable) -> np.ndarray:
+    """Angle (deg) between each scatter direction and the mirror direction of its source."""
+    light, view = table.directions()
+    mirror = light * np.array([-1.0, -1.0, 1.0])
+    return np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+
+
+def near_mirror(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str, float]:
+    """Residuals at the used points within `MIRROR_DEG` of the mirror direction."""
+    near = mirror_distance_deg(table)[result.used] <= MIRROR_DEG + 1e-9
+    residual = result.residuals[near]
+    return {
+        "points": int(near.sum()),
+        "max_abs_dex": float(np.max(np.abs(residual))),
+        "rms_dex": float(np.sqrt(np.mean(residual**2))),
+        "rms_dex_elsewhere": float(np.sqrt(np.mean(result.residuals[~near] ** 2))),
     }
 
 
@@ -92,10 +116,13 @@ def plot(name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path
         figsize=(9.0, 3.6 * rows_of_plots + 1.2),
         squeeze=False,
     )
-    zenith_fine = np.linspace(-89.5, 89.5, 3581)
     top = max(np.log10(table.value.max()), 1.0) - LOG_FLOOR + 0.3
     for axis, incidence in zip(axes.ravel(), incidences, strict=False):
         rows = table.zenith_in == incidence
+        # 0.05° steps, 0.002° within 1° of the mirror direction (the narrow lobe).
+        zenith_fine = np.union1d(
+            np.linspace(-89.5, 89.5, 3581), incidence + np.linspace(-1.0, 1.0, 1001)
+        )
         axis.set_theta_zero_location("N")
         axis.set_theta_direction(-1)
         axis.set_thetamin(-90)
@@ -137,6 +164,50 @@ def plot(name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path
         fontsize=10,
     )
     figure.subplots_adjust(bottom=0.12, top=0.9, hspace=0.05, wspace=0.15)
+    save(figure, path)
+
+
+def plot_mirror(
+    name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path: Path
+) -> None:
+    """BRDF within ±4° of the mirror direction per incidence: data, best one-lobe, two-lobe."""
+    incidences = np.unique(table.zenith_in)
+    figure, axes = plt.subplots(1, len(incidences), figsize=(3.0 * len(incidences), 3.4))
+    offsets = np.linspace(-4.0, 4.0, 4001)
+    for axis, incidence in zip(np.atleast_1d(axes), incidences, strict=True):
+        rows = (table.zenith_in == incidence) & (np.abs(table.zenith_out - incidence) <= 4.0)
+        for model_name, result in fits.items():
+            colour, style = STYLES[model_name]
+            values = model_curve(result.brdf(), incidence, incidence + offsets)
+            axis.semilogy(
+                offsets,
+                values,
+                color=colour,
+                linestyle=style,
+                linewidth=1.0,
+                label=f"{model_name} ({result.rms:.2f} dex)",
+            )
+        axis.semilogy(
+            table.zenith_out[rows] - incidence, table.value[rows], "k.", label="lab data (532 nm)"
+        )
+        axis.axvspan(-MIRROR_DEG, MIRROR_DEG, color="0.9", zorder=0)
+        axis.set_title(f"incidence {incidence:g}°", fontsize=9)
+        axis.set_xlabel("scatter zenith − mirror zenith (deg)", fontsize=8)
+        axis.tick_params(labelsize=7)
+    np.atleast_1d(axes)[0].set_ylabel("BRDF (sr⁻¹)", fontsize=8)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=7, frameon=False)
+    figure.suptitle(
+        f"Starlink v1.5 {name.replace('_', ' ')}: near the mirror direction (shaded: within "
+        f"{MIRROR_DEG:g}°)",
+        fontsize=10,
+    )
+    figure.subplots_adjust(bottom=0.27, top=0.86, wspace=0.3, left=0.06, right=0.99)
+    save(figure, path)
+
+
+def save(figure: plt.Figure, path: Path) -> None:
+    """Write ``figure`` to ``path`` atomically (PNG) and close it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".png", delete=False) as handle:
         temporary = Path(handle.name)
@@ -173,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
                 "rms_dex_per_incidence": per_incidence_rms(table, result),
                 "median_abs_dex": float(np.median(np.abs(result.residuals))),
                 "max_abs_dex": float(np.max(np.abs(result.residuals))),
+                "near_mirror": near_mirror(table, result),
                 "params": result.params,
                 "sigma": result.uncertainties,
                 "success": result.success,
@@ -180,15 +252,24 @@ def main(argv: list[str] | None = None) -> int:
                 "seconds": elapsed,
             }
         best = min(entries, key=lambda m: entries[m]["rms_dex"])
+        best_one_lobe = min(ONE_LOBE, key=lambda m: entries[m]["rms_dex"])
         figure = args.figures / f"starlink_{name}_brdf.png"
         plot(name, table, fits, figure)
+        mirror_figure = args.figures / f"starlink_{name}_mirror.png"
+        plot_mirror(name, table, {m: fits[m] for m in (best_one_lobe, "two-lobe")}, mirror_figure)
         report["materials"][name] = {
             "rows_used": int(fits["lambert"].used.sum()),
             "rows_dropped_horizon_floor": dropped,
             "models": entries,
             "best": best,
             "lambert_over_best_rms": entries["lambert"]["rms_dex"] / entries[best]["rms_dex"],
-            "figure": str(figure.relative_to(ROOT) if figure.is_relative_to(ROOT) else figure),
+            "best_one_lobe": best_one_lobe,
+            "best_one_lobe_over_two_lobe_rms": entries[best_one_lobe]["rms_dex"]
+            / entries["two-lobe"]["rms_dex"],
+            "figures": [
+                str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)
+                for path in (figure, mirror_figure)
+            ],
         }
     json.dump(report, sys.stdout, indent=2)
     print()

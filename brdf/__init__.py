@@ -1,7 +1,8 @@
 """Reflectance models (BRDFs) for facet light curves; a leaf package (numpy + torch only).
 
 Models (``docs/brdf.md`` gives the exact forms): Lambert, energy-normalised Phong,
-Cook–Torrance, Ashikhmin–Shirley and Lommel–Seeliger (DAMIT). Each has a vector form of unit
+Cook–Torrance, Ashikhmin–Shirley, Lommel–Seeliger (DAMIT) and a two-lobe microfacet model
+(broad glossy lobe plus narrow mirror lobe, for glints). Each has a vector form of unit
 ``(..., 3)`` directions and a fast cosine form of ``n·L``, ``n·V`` and ``L·V`` for the renderer;
 both accept numpy arrays or torch tensors (float32/float64, differentiable in the parameters).
 
@@ -28,6 +29,7 @@ from brdf.registry import (
     get,
 )
 from brdf.tables import BRDFTable, BRDFTableError, read_starlink_table
+from brdf.two_lobe import two_lobe, two_lobe_from_cosines
 
 __all__ = [
     "BRDF",
@@ -56,4 +58,6 @@ __all__ = [
     "phong_from_cosines",
     "read_starlink_table",
     "reciprocity_error",
+    "two_lobe",
+    "two_lobe_from_cosines",
 ]

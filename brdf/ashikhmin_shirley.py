@@ -1,4 +1,4 @@
-"""Anisotropic Phong reflectance of Ashikhmin & Shirley (2000; seed 002 ref. 22).
+"""Anisotropic Phong reflectance of Ashikhmin & Shirley (2000).
 
 As used for space objects by Wetterer & Jah and Linares et al.: ``ρ = ρ_d + ρ_s`` for
 ``n·L > 0`` and ``n·V > 0``, else 0, with
@@ -20,6 +20,7 @@ from typing import Any
 
 from brdf._array import prepare
 from brdf._geometry import COSINE_FLOOR, cosines, half_vector, tangent_cosines, visibility
+from brdf._microfacet import schlick
 
 __all__ = ["ashikhmin_shirley", "ashikhmin_shirley_from_cosines"]
 
@@ -81,9 +82,7 @@ def ashikhmin_shirley_from_cosines(
         hu2 = hu * hu
         hv2 = hv * hv
         exponent = (nu * hu2 + nv * hv2) / xp.clip(hu2 + hv2, _TINY, None)
-    q = 1.0 - vh
-    q2 = q * q
-    fresnel = rs + (1.0 - rs) * (q2 * q2 * q)
+    fresnel = schlick(rs, vh)
     specular_weight = ((nu + 1.0) * (nv + 1.0)) ** 0.5 * _INV_8PI * fresnel / vh
     specular = specular_weight * nh**exponent / xp.clip(xp.maximum(nl, nview), COSINE_FLOOR, None)
     diffuse = (_DIFFUSE * rd * (1.0 - rs)) * (

@@ -1,4 +1,4 @@
-"""Cook–Torrance microfacet reflectance (Cook & Torrance 1981, seed 002 ref. 19).
+"""Cook–Torrance microfacet reflectance (Cook & Torrance 1981).
 
 ``ρ = rd/π + rs·D·G·F/(4 (n·L)(n·V))`` for ``n·L > 0`` and ``n·V > 0``, else 0, with
 
@@ -18,6 +18,7 @@ from typing import Any
 
 from brdf._array import prepare
 from brdf._geometry import COSINE_FLOOR, cosines, half_vector, visibility
+from brdf._microfacet import beckmann_shape, schlick, v_cavity
 
 __all__ = ["cook_torrance", "cook_torrance_from_cosines"]
 
@@ -51,16 +52,11 @@ def cook_torrance_from_cosines(
     visible, low = visibility(xp, nl, nv)
     vh, nh = half_vector(xp, nl, nv, lv)
     inv_m2 = 1.0 / (m * m)
-    inv_nh2 = 1.0 / (nh * nh)
     # D = exp(−tan²θ_H / m²)/(π m² cos⁴θ_H), tan²θ_H = 1/NH² − 1.
-    distribution = xp.exp((1.0 - inv_nh2) * inv_m2) * (inv_nh2 * inv_nh2)
-    # G = min(1, 2 NH min(NL, NV)/VH).
+    distribution = beckmann_shape(xp, 1.0 / (nh * nh), inv_m2)
     low = xp.clip(low, COSINE_FLOOR, None)
-    masking = xp.clip(nh * low * (2.0 / vh), None, 1.0)
-    # F = f0 + (1 − f0)(1 − VH)⁵, one value per epoch.
-    q = 1.0 - vh
-    q2 = q * q
-    fresnel = f0 + (1.0 - f0) * (q2 * q2 * q)
+    masking = v_cavity(xp, nh, low, vh)
+    fresnel = schlick(f0, vh)  # one value per epoch
     specular_weight = (rs * 0.25 * _INV_PI) * inv_m2 * fresnel
     specular = distribution * masking / (low * xp.clip(xp.maximum(nl, nv), COSINE_FLOOR, None))
     return (rd * _INV_PI + specular_weight * specular) * visible

@@ -5,8 +5,10 @@
 materials span many decades (the Starlink solar array: 10⁻³ to 5·10⁴ sr⁻¹) so the logarithm
 gives every measurement a comparable weight. Exponent-like parameters (``log_scale`` in
 `brdf.describe`) are searched in their logarithm; the fit restarts from several points spread
-over their ranges (``starts``) and keeps the best. For Phong and Cook–Torrance with ``rd`` and
-``rs`` both free, the search variable is ``rd/(1 − rs)`` in [0, 1] so ``rd + rs ≤ 1`` holds.
+over their ranges (``starts``) and keeps the best. Weights whose sum may not exceed 1
+(``ModelInfo.weights``: ``rd + rs`` of Phong and Cook–Torrance, ``rd + rb + rn`` of the two-lobe
+model) are searched by stick breaking: the last free weight directly, each earlier one as its
+fraction in [0, 1] of what the later ones leave (e.g. ``rd/(1 − rs)``), so the sum holds.
 
 The 1σ uncertainties come from the Jacobian at the optimum,
 ``C = s² (JᵀJ)⁻¹`` with ``s² = Σ r²/(N − p)``, mapped to the model parameters through the
@@ -23,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from brdf._geometry import cosines, tangent_cosines
-from brdf.registry import _SUMMED_ALBEDOS, BRDF, BRDFParameterError, ModelInfo, describe, get
+from brdf.registry import BRDF, BRDFParameterError, ModelInfo, describe, get
 from brdf.tables import BRDFTable
 
 __all__ = ["FitResult", "fit"]
@@ -76,31 +78,44 @@ class FitResult:
 
 @dataclass(frozen=True)
 class _Search:
-    """Map between the search vector ``x`` and the model parameters."""
+    """Map between the search vector ``x`` and the model parameters.
+
+    ``shared`` lists the free weights searched by stick breaking (the first directly, each
+    later one as its fraction of ``budget`` minus the earlier ones); ``budget`` is 1 minus the
+    fixed weights.
+    """
 
     info: ModelInfo
     free: tuple[str, ...]
     fixed: dict[str, float]
     tied: dict[str, str]
     bounds: dict[str, tuple[float, float]]
-    share: bool  # rd is searched as rd/(1 − rs)
+    shared: tuple[str, ...] = ()
+    budget: float = 1.0
 
     def is_log(self, name: str) -> bool:
         return self.info.parameter(name).log_scale
 
+    def is_fraction(self, name: str) -> bool:
+        return name in self.shared[1:]
+
     def to_x(self, params: Mapping[str, float]) -> np.ndarray:
+        fractions = {}
+        remaining = self.budget
+        for name in self.shared:
+            if self.is_fraction(name):
+                fractions[name] = params[name] / remaining if remaining > 0.0 else 0.0
+            remaining -= params[name]
         x = []
         for name in self.free:
-            value = params[name]
-            if name == "rd" and self.share:
-                value = value / (1.0 - params["rs"]) if params["rs"] < 1.0 else 0.0
+            value = fractions.get(name, params[name])
             x.append(math.log(value) if self.is_log(name) else value)
         return np.array(x)
 
     def x_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         low, high = [], []
         for name in self.free:
-            lo, hi = (0.0, 1.0) if name == "rd" and self.share else self.bounds[name]
+            lo, hi = (0.0, 1.0) if self.is_fraction(name) else self.bounds[name]
             if self.is_log(name):
                 lo, hi = math.log(lo), math.log(hi)
             low.append(lo)
@@ -113,8 +128,11 @@ class _Search:
             for name, v in zip(self.free, x, strict=True)
         }
         values.update(self.fixed)
-        if self.share:
-            values["rd"] = values["rd"] * (1.0 - values["rs"])
+        remaining = self.budget
+        for name in self.shared:
+            if self.is_fraction(name):
+                values[name] = values[name] * max(remaining, 0.0)
+            remaining -= values[name]
         for name, source in self.tied.items():
             values[name] = values[source]
         return values
@@ -199,14 +217,18 @@ def fit(
                 f"inside its valid range {spec.range_text}"
             )
         search_bounds[name] = (float(lo), float(hi))
-    share = info.name in _SUMMED_ALBEDOS and "rd" in free and "rs" in free
-    if not share and info.name in _SUMMED_ALBEDOS:
-        # One of rd, rs is fixed: bound the other so that rd + rs ≤ 1.
-        for name, other in (("rd", "rs"), ("rs", "rd")):
-            if name in free and other in fixed:
-                lo, hi = search_bounds[name]
-                search_bounds[name] = (lo, min(hi, 1.0 - fixed[other]))
-    search = _Search(info, free, fixed, tied, search_bounds, share)
+    # Weights whose sum is bounded by 1: stick breaking over the free ones, last first.
+    shared = tuple(name for name in reversed(info.weights) if name in free)
+    budget = 1.0 - sum(fixed.get(name, 0.0) for name in info.weights)
+    if shared:
+        lo, hi = search_bounds[shared[0]]
+        if not min(hi, budget) > lo:
+            raise BRDFParameterError(
+                f"{info.name}: the fixed weights leave {budget:g} for {shared[0]!r}, below its "
+                f"lower bound {lo:g} ({' + '.join(info.weights)} ≤ 1)"
+            )
+        search_bounds[shared[0]] = (lo, min(hi, budget))
+    search = _Search(info, free, fixed, tied, search_bounds, shared, budget)
 
     light, view = table.directions()
     normal, tangent = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])

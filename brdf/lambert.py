@@ -1,7 +1,7 @@
 """Lambertian (perfectly diffuse) reflectance.
 
 ``ρ = rd/π`` for ``n·L > 0`` and ``n·V > 0``, else 0 (Lambert 1760; the diffuse model of
-seed 002 sec. 3.2). ``rd`` is the directional-hemispherical albedo.
+Gou et al. 2016, sec. 3.2). ``rd`` is the directional-hemispherical albedo.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Energy-normalised Phong reflectance (Phong 1975, seed 002 ref. 17; Lewis 1994 normalisation).
+"""Energy-normalised Phong reflectance (Phong 1975; Lewis 1994 normalisation).
 
 ``ρ = rd/π + rs·(n + 2)/(2π)·max(0, R·V)^n`` for ``n·L > 0`` and ``n·V > 0``, else 0, with
 ``R = 2 (n·L) n − L`` the mirror direction of the Sun vector, so ``R·V = 2 (n·L)(n·V) − L·V``.

@@ -21,6 +21,7 @@ from brdf.cook_torrance import cook_torrance, cook_torrance_from_cosines
 from brdf.lambert import lambert, lambert_from_cosines
 from brdf.lommel_seeliger import lommel_seeliger, lommel_seeliger_from_cosines
 from brdf.phong import phong, phong_from_cosines
+from brdf.two_lobe import two_lobe, two_lobe_from_cosines
 
 __all__ = [
     "BRDF",
@@ -103,6 +104,9 @@ class ModelInfo:
     constraints : tuple of str
         Joint conditions beyond the per-parameter ranges.
     reference : str
+    weights : tuple of str
+        Parameters whose sum must not exceed 1 (the model then conserves energy); empty
+        when the ranges alone suffice.
     """
 
     name: str
@@ -112,6 +116,7 @@ class ModelInfo:
     reference: str
     vector: Callable[..., Any] = field(repr=False)
     cosine: Callable[..., Any] = field(repr=False)
+    weights: tuple[str, ...] = ()
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -163,9 +168,10 @@ _MODELS: dict[str, ModelInfo] = {
                 ),
             ),
             constraints=("rd + rs ≤ 1",),
-            reference="Phong (1975), energy-normalised (Lewis 1994); seed 002 ref. 17",
+            reference="Phong (1975), energy-normalised (Lewis 1994)",
             vector=phong,
             cosine=phong_from_cosines,
+            weights=("rd", "rs"),
         ),
         ModelInfo(
             name="cook-torrance",
@@ -188,9 +194,10 @@ _MODELS: dict[str, ModelInfo] = {
                 ),
             ),
             constraints=("rd + rs ≤ 1",),
-            reference="Cook & Torrance (1981); seed 002 ref. 19",
+            reference="Cook & Torrance (1981)",
             vector=cook_torrance,
             cosine=cook_torrance_from_cosines,
+            weights=("rd", "rs"),
         ),
         ModelInfo(
             name="ashikhmin-shirley",
@@ -223,7 +230,7 @@ _MODELS: dict[str, ModelInfo] = {
                 ),
             ),
             constraints=("nu ≠ nv needs a tangent frame (tangent= or hu=, hv=)",),
-            reference="Ashikhmin & Shirley (2000); seed 002 ref. 22; Wetterer et al. (2014)",
+            reference="Ashikhmin & Shirley (2000); Wetterer et al. (2014)",
             vector=ashikhmin_shirley,
             cosine=ashikhmin_shirley_from_cosines,
         ),
@@ -262,9 +269,64 @@ _MODELS: dict[str, ModelInfo] = {
             vector=lommel_seeliger,
             cosine=lommel_seeliger_from_cosines,
         ),
+        ModelInfo(
+            name="two-lobe",
+            formula=(
+                "ρ = rd/π + G/(4 NL NV) (rb F(fb) D_TR(ab) + rn F(fn) D_B(mn)), GGX broad and "
+                "Beckmann narrow lobes, Schlick F per lobe, V-cavity G"
+            ),
+            parameters=(
+                ParameterSpec("rd", "diffuse weight", 0.05, 0.0, 1.0, (0.0, 1.0)),
+                ParameterSpec("rb", "broad-lobe weight", 0.2, 0.0, 1.0, (0.0, 1.0)),
+                ParameterSpec(
+                    "ab",
+                    "broad-lobe Trowbridge–Reitz (GGX) roughness",
+                    0.1,
+                    0.0,
+                    math.inf,
+                    (1e-3, 3.0),
+                    lower_open=True,
+                    log_scale=True,
+                ),
+                ParameterSpec(
+                    "fb",
+                    "broad-lobe Fresnel reflectance at normal incidence",
+                    1.0,
+                    0.0,
+                    1.0,
+                    (0.0, 1.0),
+                ),
+                ParameterSpec("rn", "narrow-lobe weight", 0.5, 0.0, 1.0, (0.0, 1.0)),
+                ParameterSpec(
+                    "mn",
+                    "narrow-lobe Beckmann RMS facet slope",
+                    0.002,
+                    0.0,
+                    math.inf,
+                    (1e-5, 0.1),
+                    lower_open=True,
+                    log_scale=True,
+                ),
+                ParameterSpec(
+                    "fn",
+                    "narrow-lobe Fresnel reflectance at normal incidence",
+                    0.04,
+                    0.0,
+                    1.0,
+                    (0.0, 1.0),
+                ),
+            ),
+            constraints=("rd + rb + rn ≤ 1",),
+            reference=(
+                "Cook & Torrance (1981); Trowbridge & Reitz (1975), Walter et al. (2007); "
+                "Schlick (1994); Heitz (2014)"
+            ),
+            vector=two_lobe,
+            cosine=two_lobe_from_cosines,
+            weights=("rd", "rb", "rn"),
+        ),
     )
 }
-_SUMMED_ALBEDOS = {"phong", "cook-torrance"}
 
 
 def _canonical_name(name: str) -> str:
@@ -307,12 +369,13 @@ def _check(info: ModelInfo, params: Mapping[str, Any]) -> None:
                 f"{info.name}: parameter {spec.name!r} = {np.ravel(bad)[0]:g}{where} is outside "
                 f"its valid range {spec.range_text} ({spec.meaning})"
             )
-    if info.name in _SUMMED_ALBEDOS:
-        total = _as_numpy(params["rd"]) + _as_numpy(params["rs"])
+    if info.weights:
+        total = sum(_as_numpy(params[name]) for name in info.weights)
         if np.any(total > 1.0 + 1e-12):
+            names = " + ".join(info.weights)
             raise BRDFParameterError(
-                f"{info.name}: rd + rs = {np.max(total):g} exceeds 1; the model conserves "
-                "energy only for rd + rs ≤ 1"
+                f"{info.name}: {names} = {np.max(total):g} exceeds 1; the model conserves "
+                f"energy only for {names} ≤ 1"
             )
 
 

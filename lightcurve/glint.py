@@ -1,6 +1,6 @@
 """Glint (specular flash) analysis: detection, PAB directions, panel normals, spin periods.
 
-Seed 002 sec. 2.2 (extremum methods): a flat panel flashes when its normal points along the
+Gou et al. 2016, sec. 2.2 (extremum methods): a flat panel flashes when its normal points along the
 phase-angle bisector ``h = (ŝ + ô)/|ŝ + ô|`` (Sun and observer unit vectors from the
 object). The epoch of a flash therefore measures the panel normal's direction at that
 instant; several flashes of a stabilised object give the normal by least squares, and the
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import OptimizeWarning, curve_fit
-from scipy.stats import norm
+from scipy.stats import t as student_t
 
 from filters.attitude import rotate
 from lightcurve.geometry import phase_angle_bisector
@@ -37,6 +37,7 @@ __all__ = [
     "GlintDetection",
     "PanelNormal",
     "detect_glints",
+    "detection_threshold",
     "glint_period",
     "panel_normal",
 ]
@@ -106,24 +107,37 @@ class GlintDetection:
     false_alarm: float
     window_s: float
     baseline: np.ndarray = field(repr=False)
+    degree: int = 2
+    excess_sigma: np.ndarray = field(default=None, repr=False)
+    """Brightening of every point above the baseline in units of its σ (the detector fires
+    where it exceeds ``threshold_sigma``)."""
 
 
 def detect_glints(
     observations: Observations,
     window_s: float | None = None,
     false_alarm: float = 1e-3,
+    max_flash_s: float | None = None,
+    degree: int = 2,
 ) -> GlintDetection:
-    """Find specular flashes above a smooth baseline.
+    """Find specular flashes above a smooth, curved baseline.
 
     Parameters
     ----------
     observations : Observations
         One light curve (or several: each ``lightcurve_id`` gets its own baseline).
     window_s : float, optional
-        Baseline window (s); flashes must be shorter than about half of it. Default: a
-        quarter of the longest light curve, at least 25 sampling intervals.
+        Full width of the baseline's local fit (s). Default: ``4 · max_flash_s``, at least
+        25 sampling intervals.
     false_alarm : float
         Probability that a flash-free light curve of this length shows a detection.
+    max_flash_s : float, optional
+        Longest flash to be found (time above the noise, s). Default: a sixteenth of the
+        longest light curve (so the default window is a quarter of it). Ignored when
+        ``window_s`` is given.
+    degree : int
+        Degree of the local polynomial (0 to 3; 2 follows the bend of a fading curve, 1 is
+        the running straight line).
 
     Returns
     -------
@@ -131,81 +145,178 @@ def detect_glints(
     """
     if not 0 < false_alarm < 1:
         raise ValueError(f"false_alarm must be in (0, 1), got {false_alarm}")
+    if degree not in (0, 1, 2, 3):
+        raise ValueError(f"degree must be 0, 1, 2 or 3, got {degree}")
     times = observations.times
     mag = observations.magnitudes
     ids = observations.lightcurve_ids
     cadence = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
-    durations = [np.ptp(times[ids == label]) for label in np.unique(ids)]
-    window = max(25.0 * cadence, 0.25 * float(np.max(durations))) if window_s is None else window_s
-    window = float(window)
-    if not window > 0:
-        raise ValueError(f"window_s must be positive, got {window_s}")
-    baseline, leverage, noise = _baseline(times, mag, ids, window)
-    if not noise > 0:
-        noise = float(np.median(observations.magnitude_errors))
+    if window_s is None:
+        if max_flash_s is None:
+            durations = [np.ptp(times[ids == label]) for label in np.unique(ids)]
+            max_flash_s = float(np.max(durations)) / 16.0
+        elif not max_flash_s > 0:
+            raise ValueError(f"max_flash_s must be positive, got {max_flash_s}")
+        window = max(25.0 * cadence, 4.0 * float(max_flash_s))
+    else:
+        window = float(window_s)
+        if not window > 0:
+            raise ValueError(f"window_s must be positive, got {window_s}")
+    errors = observations.magnitude_errors
+    if np.any(~(errors > 0)):
+        row = int(np.flatnonzero(~(errors > 0))[0])
+        raise ValueError(f"mag_err must be positive (row {row}: {errors[row]})")
+    baseline, leverage, scale = _baseline(times, mag, errors, ids, window, degree)
+    noise = scale * errors * np.sqrt(1.0 + leverage)
     residual = baseline - mag  # > 0: brighter than the baseline
-    z = float(norm.isf(false_alarm / len(mag)))
-    candidate = residual > z * noise * np.sqrt(1.0 + leverage)
+    z = detection_threshold(false_alarm, len(mag))
+    excess_sigma = residual / noise
+    candidate = excess_sigma > z
     glints = []
     sun, observer = observations.sun_vectors, observations.observer_vectors
+    typical = float(np.median(scale * errors))
     for rows in _runs(candidate, ids, times, 2.5 * cadence):
         glints.append(
-            _describe(rows, times, residual, noise, sun, observer, observations.mjd, cadence)
+            _describe(rows, times, residual, typical, sun, observer, observations.mjd, cadence)
         )
-    return GlintDetection(glints, z, noise, false_alarm, window, baseline)
+    return GlintDetection(glints, z, typical, false_alarm, window, baseline, degree, excess_sigma)
+
+
+def detection_threshold(false_alarm: float, n: int) -> float:
+    """Per-point threshold (in σ) giving a per-curve false-alarm probability ≤ ``false_alarm``.
+
+    Bonferroni: each of the ``n`` points may exceed it with probability ``false_alarm/n``.
+    The scatter is itself estimated (by the MAD, of asymptotic efficiency 0.37 for Gaussian
+    noise: ``var(σ̂)/σ² ≈ 1/(2 · 0.37 n)``), so the quantile is Student's t with
+    ``ν = 0.37 n`` degrees of freedom rather than the normal one.
+    """
+    dof = max(0.37 * n, 3.0)
+    return float(student_t.isf(false_alarm / n, dof))
 
 
 def _baseline(
-    times: np.ndarray, mag: np.ndarray, ids: np.ndarray, window: float, iterations: int = 4
+    times: np.ndarray,
+    mag: np.ndarray,
+    errors: np.ndarray,
+    ids: np.ndarray,
+    window: float,
+    degree: int,
+    iterations: int = 4,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Running straight-line fit over ±window/2 with brightenings above 3σ clipped.
+    """Local polynomial (LOESS) baseline with brightenings above 3σ clipped.
 
-    Window sums of ``1, t, t², y, t y`` come from cumulative sums, so each pass is O(N).
+    Every point gets a weighted least-squares polynomial of ``degree`` in time over
+    ``±window/2`` with tricube weights ``(1 − |u|³)³`` (Cleveland 1979, "Robust locally
+    weighted regression and smoothing scatterplots", JASA 74, 829) divided by ``mag_err²``;
+    points brighter than the baseline by more than 3σ (and their neighbours) get weight 0
+    in the next pass, so the flashes do not lift it. Unlike a straight line, it follows the
+    curvature of a curve fading towards the terminator; at the ends and beside gaps it
+    extrapolates the local polynomial (a running median does not).
 
     Returns
     -------
     baseline : (N,) float
     leverage : (N,) float
-        ``1/n + (t − t̄)²/S_tt`` of each point in its window.
-    noise : float
-        Robust scatter (1.4826 MAD) of the unclipped residuals.
+        ``Σ_j l_ij² (e_i/e_j)²``: variance of the baseline at point i in units of
+        ``(scale · e_i)²`` (``l_ij`` the smoother's weights).
+    scale : float
+        Robust scatter (1.4826 MAD) of the unclipped residuals in units of ``mag_err``.
     """
     baseline = np.empty_like(mag)
     leverage = np.empty_like(mag)
     keep = np.ones(len(mag), dtype=bool)
-    noise = 0.0
+    scale = 1.0
+    segments = [np.flatnonzero(ids == label) for label in np.unique(ids)]
     for _ in range(iterations):
-        for label in np.unique(ids):
-            rows = np.flatnonzero(ids == label)
-            t = times[rows] - times[rows[0]]
-            lo = np.searchsorted(t, t - 0.5 * window, side="left")
-            hi = np.searchsorted(t, t + 0.5 * window, side="right")
-            w = keep[rows].astype(float)
-            y = mag[rows]
-
-            s0, s1, s2, sy, sty = (
-                _window_sums(v, lo, hi) for v in (w, w * t, w * t * t, w * y, w * t * y)
+        for rows in segments:
+            baseline[rows], leverage[rows] = _local_fit(
+                times[rows], mag[rows], errors[rows], keep[rows], window, degree
             )
-            mean_t = s1 / np.maximum(s0, 1.0)
-            stt = s2 - s1 * mean_t
-            ok = (s0 >= 3) & (stt > 1e-12 * np.maximum(s2, 1.0))
-            slope = np.where(ok, (sty - mean_t * sy) / np.where(ok, stt, 1.0), 0.0)
-            level = sy / np.maximum(s0, 1.0)
-            baseline[rows] = level + slope * (t - mean_t)
-            leverage[rows] = 1.0 / np.maximum(s0, 1.0) + np.where(
-                ok, (t - mean_t) ** 2 / np.where(ok, stt, 1.0), 0.0
-            )
-        residual = baseline - mag
-        inliers = residual[keep]
-        noise = 1.4826 * float(np.median(np.abs(inliers - np.median(inliers))))
-        keep = residual < 3.0 * noise * np.sqrt(1.0 + leverage)
-    return baseline, leverage, noise
+        standard = (baseline - mag) / errors
+        inliers = standard[keep]
+        scale = 1.4826 * float(np.median(np.abs(inliers - np.median(inliers))))
+        if not scale > 0:
+            scale = 1.0
+        flagged = standard > 3.0 * scale * np.sqrt(1.0 + leverage)
+        keep = ~_widen(flagged)
+    return baseline, leverage, scale
 
 
-def _window_sums(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``Σ values[lo_i:hi_i]`` for every i, from one cumulative sum."""
-    total = np.concatenate([[0.0], np.cumsum(values)])
-    return total[hi] - total[lo]
+def _widen(flagged: np.ndarray) -> np.ndarray:
+    """Each run of flagged points widened by an eighth of its length (≥ 1 point) per side.
+
+    A flash's wings, below the clipping level point by point, grow with its width; left in
+    the fit they lift the baseline beside a long flash. (Widening by more lets the clipped
+    stretch feed on itself over the iterations: a broad hump next to a flash gets clipped.)
+    """
+    rows = np.flatnonzero(flagged)
+    if len(rows) == 0:
+        return flagged
+    breaks = np.flatnonzero(np.diff(rows) > 1) + 1
+    first, last = rows[np.r_[0, breaks]], rows[np.r_[breaks - 1, len(rows) - 1]]
+    margin = np.maximum((last - first + 1) // 8, 1)
+    change = np.zeros(len(flagged) + 1, dtype=int)
+    np.add.at(change, np.maximum(first - margin, 0), 1)
+    np.add.at(change, np.minimum(last + margin + 1, len(flagged)), -1)
+    return np.cumsum(change[:-1]) > 0
+
+
+def _local_fit(
+    t: np.ndarray,
+    y: np.ndarray,
+    e: np.ndarray,
+    keep: np.ndarray,
+    window: float,
+    degree: int,
+    block_size: int = 2_000_000,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Value and variance factor of the local polynomial fit at every point of one curve.
+
+    Vectorised over (points × window neighbours), in blocks of at most ``block_size`` pairs.
+    The normal equations are solved by pseudo-inverse (a degenerate window gives the
+    minimum-norm fit). Clipped points whose window keeps points on one side only, and
+    points whose window keeps fewer than ``2 (degree + 1)``, get the baseline interpolated
+    between the nearest good fits.
+    """
+    half = 0.5 * window
+    lo = np.searchsorted(t, t - half, side="left")
+    hi = np.searchsorted(t, t + half, side="right")
+    width = int(np.max(hi - lo))
+    powers = np.arange(degree + 1)
+    value = np.empty(len(t))
+    variance = np.empty(len(t))
+    support = np.empty(len(t), dtype=int)
+    two_sided = np.empty(len(t), dtype=bool)
+    step = max(1, block_size // width)
+    for start in range(0, len(t), step):
+        i = np.arange(start, min(start + step, len(t)))
+        j = lo[i, None] + np.arange(width)
+        inside = j < hi[i, None]
+        j = np.minimum(j, len(t) - 1)
+        u = (t[j] - t[i, None]) / half
+        w = np.where(inside & keep[j], (1.0 - np.clip(np.abs(u), 0, 1) ** 3) ** 3, 0.0) / e[j] ** 2
+        design = u[..., None] ** powers  # (n, K, p)
+        normal = np.einsum("nk,nkp,nkq->npq", w, design, design)
+        first_row = np.linalg.pinv(normal, rcond=1e-10, hermitian=True)[:, 0, :]
+        smoother = w * np.einsum("nkp,np->nk", design, first_row)  # l_ij
+        value[i] = np.einsum("nk,nk->n", smoother, y[j])
+        variance[i] = np.einsum("nk,nk->n", smoother**2, (e[j] / e[i, None]) ** 2)
+        used = w > 0
+        support[i] = np.count_nonzero(used, axis=1)
+        two_sided[i] = np.any(used & (u < 0), axis=1) & np.any(used & (u > 0), axis=1)
+    # Inside a clipped stretch (a flash) a fit from one side only would extrapolate the
+    # polynomial; there, and where the window keeps too few points, the baseline is bridged
+    # linearly between the nearest good fits.
+    valid = (support >= 2 * (degree + 1)) & (keep | two_sided)
+    if not np.any(valid):
+        raise ValueError(
+            f"the baseline window ({window:g} s) holds fewer than {2 * (degree + 1)} points "
+            "anywhere in the light curve; give a longer window_s"
+        )
+    if not np.all(valid):
+        value = np.where(valid, value, np.interp(t, t[valid], value[valid]))
+        variance = np.where(valid, variance, np.interp(t, t[valid], variance[valid]))
+    return value, variance
 
 
 def _runs(mask: np.ndarray, ids: np.ndarray, times: np.ndarray, gap: float) -> list[np.ndarray]:

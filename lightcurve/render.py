@@ -21,10 +21,11 @@ epochs); numpy inputs give numpy outputs, torch inputs torch outputs:
   and particle update. One pass over the facets per row, no (rows × facets) arrays, rows
   spread over ``torch.get_num_threads()`` threads;
 * torch (the *eager* path): when an input requires grad (the global search and the
-  photometric planner differentiate the flux with respect to the attitude), on CUDA, and for
-  :meth:`Renderer.facet_flux`. Every BRDF is evaluated through its cosine form (``n·L``,
-  ``n·V``, ``L·V`` and, for anisotropic Ashikhmin–Shirley, ``H·u``, ``H·v``), one call per
-  material on a contiguous block of facets, in cache-sized chunks of rows.
+  photometric planner differentiate the flux with respect to the attitude), on CUDA, for
+  :meth:`Renderer.facet_flux`, and for a shape with a BRDF that has no fused kernel. Every
+  BRDF is evaluated through its cosine form (``n·L``, ``n·V``, ``L·V`` and, for anisotropic
+  Ashikhmin–Shirley, ``H·u``, ``H·v``), one call per material on a contiguous block of
+  facets, in cache-sized chunks of rows.
 """
 
 from __future__ import annotations
@@ -348,7 +349,7 @@ class Renderer:
 
     def _fusable(self, *inputs: Any) -> bool:
         """Whether the fused CPU kernels may evaluate these inputs (no gradient, no GPU)."""
-        if self.backend != "auto" or not self._on_cpu:
+        if self.backend != "auto" or not self._on_cpu or not self._fused_kernels_exist:
             return False
         torch = sys.modules.get("torch")
         if torch is None:
@@ -360,6 +361,13 @@ class Renderer:
             ):
                 return False
         return True
+
+    @cached_property
+    def _fused_kernels_exist(self) -> bool:
+        """Whether every material's BRDF has a fused kernel (if not, torch renders)."""
+        from lightcurve.kernels import KINDS
+
+        return all(block.model.name in KINDS for block in self._blocks)
 
     def _fused_flux(self) -> Any:
         if self._fused is None:

@@ -13,6 +13,8 @@ model                  required parameters            optional parameters
 ``cook-torrance``      ``rd``, ``rs``, ``m``, ``f0``
 ``ashikhmin-shirley``  ``rd``, ``rs``, ``nu``, ``nv``
 ``lommel-seeliger``    ``c``                          ``w``, ``a``, ``d``, ``k``
+``two-lobe``           ``rd``, ``rb``, ``ab``, ``fb``,
+                       ``rn``, ``mn``, ``fn``
 =====================  =============================  =======================
 
 The presets below are the defaults of the primitives (:mod:`shapes.primitives`); they are
@@ -47,6 +49,7 @@ BRDF_PARAMETERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "cook-torrance": (("rd", "rs", "m", "f0"), ()),
     "ashikhmin-shirley": (("rd", "rs", "nu", "nv"), ()),
     "lommel-seeliger": (("c",), ("w", "a", "d", "k")),
+    "two-lobe": (("rd", "rb", "ab", "fb", "rn", "mn", "fn"), ()),
 }
 
 

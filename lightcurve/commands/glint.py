@@ -1,8 +1,9 @@
-"""Glint analysis of a light curve (seed 002 sec. 2.2).
+"""Glint analysis of a light curve (Gou et al. 2016, sec. 2.2).
 
-Detects specular flashes above a running straight-line baseline at a stated false-alarm
-probability, and gives for each glint its epoch (with 1σ error), brightening and the
-phase-angle bisector (PAB) direction in the file's inertial frame. With three or more glints
+Detects specular flashes above a smooth baseline (a local quadratic that follows the bend of
+a curve fading towards the terminator) at a stated false-alarm probability, and gives for
+each glint its epoch (with 1σ error), brightening and the phase-angle bisector (PAB)
+direction in the file's inertial frame. With three or more glints
 the glint-to-glint spin period of a tumbler is estimated. With --normal the glints are taken
 as flashes of one flat panel and its least-squares normal is estimated: inertially fixed
 (--frame inertial) or fixed in the body (--frame body, using the file's attitude columns
@@ -33,8 +34,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--window",
         type=float,
         metavar="SECONDS",
-        help="baseline window, s (default: a quarter of the span; flashes must be shorter "
-        "than half of it)",
+        help="baseline window, s (default: 4 x --max-flash; flashes must be shorter than a "
+        "quarter of it)",
+    )
+    parser.add_argument(
+        "--max-flash",
+        type=float,
+        metavar="SECONDS",
+        help="longest flash to be found, s; sets the default window (default: a sixteenth "
+        "of the span)",
+    )
+    parser.add_argument(
+        "--degree",
+        type=int,
+        choices=(0, 1, 2, 3),
+        default=2,
+        help="degree of the local polynomial baseline (default 2; 1: running straight line)",
     )
     parser.add_argument(
         "--false-alarm",
@@ -58,7 +73,13 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve.glint import detect_glints, glint_period, panel_normal
 
     obs = io.read(args.file)
-    detection = detect_glints(obs, window_s=args.window, false_alarm=args.false_alarm)
+    detection = detect_glints(
+        obs,
+        window_s=args.window,
+        false_alarm=args.false_alarm,
+        max_flash_s=args.max_flash,
+        degree=args.degree,
+    )
     glints = detection.glints
     summary = {
         "file": str(args.file),
@@ -66,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
         "threshold_sigma": detection.threshold_sigma,
         "noise_mag": detection.noise_mag,
         "window_s": detection.window_s,
+        "baseline_degree": detection.degree,
         "glints": [g.summary() for g in glints],
     }
     estimate = glint_period(glints)

@@ -11,8 +11,9 @@ solar array (22.68 m², normal ``(0, 1, 0)``, perpendicular to the chassis and t
 the Sun). In the body frame used here ``+z`` is the local vertical (away from the Earth's
 centre; the geocentric vertical, within 0.2° of the geodetic one) and ``+y`` is the Sun's
 direction projected on the horizontal plane. Materials are the ``starlink-chassis`` and
-``starlink-solar-array`` presets of ``data/materials.toml``, fitted to the laboratory BRDF
-tables of the same paper — nothing is tuned to the brightness observations.
+``starlink-solar-array`` presets of ``data/materials.toml`` (two-lobe BRDFs), fitted to the
+laboratory BRDF tables of the same paper — nothing is tuned to the brightness observations;
+``ONE_LOBE_MATERIALS`` names the earlier one-lobe (Cook–Torrance) fits of the same tables.
 """
 
 from __future__ import annotations
@@ -37,7 +38,9 @@ from shapes import FacetModel, Material
 
 __all__ = [
     "CHASSIS_AREA_M2",
+    "MATERIALS",
     "MOUNT_LEMMON",
+    "ONE_LOBE_MATERIALS",
     "POMENIS_PATH",
     "SOLAR_ARRAY_AREA_M2",
     "predict_observations",
@@ -53,6 +56,10 @@ POMENIS_PATH = (
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon (Pomenis)")
 CHASSIS_AREA_M2 = 3.64
 SOLAR_ARRAY_AREA_M2 = 22.68
+#: Presets (``data/materials.toml``) of the chassis and the solar array: the two-lobe fits.
+MATERIALS = ("starlink-chassis", "starlink-solar-array")
+#: The best one-lobe fits (Cook–Torrance) of the same lab tables.
+ONE_LOBE_MATERIALS = ("starlink-chassis-cook-torrance", "starlink-solar-array-cook-torrance")
 
 
 def read_pomenis(path: str | Path = POMENIS_PATH) -> pd.DataFrame:
@@ -98,17 +105,22 @@ def _plate(normal: np.ndarray, area: float) -> tuple[np.ndarray, np.ndarray]:
     return corners, np.array([[0, 1, 2], [0, 2, 3]])
 
 
-def starlink_model() -> FacetModel:
-    """The two-surface Starlink v1.5 model with the lab-fitted materials."""
+def starlink_model(materials: tuple[str, str] = MATERIALS) -> FacetModel:
+    """The two-surface Starlink v1.5 model with lab-fitted materials.
+
+    Parameters
+    ----------
+    materials : (str, str)
+        Preset names (``data/materials.toml``) of the chassis and the solar array.
+    """
     presets = load_presets()
+    unknown = [name for name in materials if name not in presets]
+    if unknown:
+        raise ValueError(f"no material preset(s) {', '.join(unknown)} in data/materials.toml")
+    chassis, solar_array = (presets[name] for name in materials)
     parts = [
-        ("chassis", np.array([0.0, 0.0, -1.0]), CHASSIS_AREA_M2, presets["starlink-chassis"]),
-        (
-            "solar_array",
-            np.array([0.0, 1.0, 0.0]),
-            SOLAR_ARRAY_AREA_M2,
-            presets["starlink-solar-array"],
-        ),
+        ("chassis", np.array([0.0, 0.0, -1.0]), CHASSIS_AREA_M2, chassis),
+        ("solar_array", np.array([0.0, 1.0, 0.0]), SOLAR_ARRAY_AREA_M2, solar_array),
     ]
     vertices, faces, groups = [], [], []
     for index, (_, normal, area, _) in enumerate(parts):
@@ -195,7 +207,11 @@ def pomenis_geometry(
     return observations, q
 
 
-def predict_observations(observations: Observations, site: Site = MOUNT_LEMMON) -> np.ndarray:
+def predict_observations(
+    observations: Observations,
+    site: Site = MOUNT_LEMMON,
+    materials: tuple[str, str] = MATERIALS,
+) -> np.ndarray:
     """Predicted magnitudes of a Starlink v1.5 in any observation file from ``site``.
 
     The satellite's and the Sun's geocentric positions are recovered from the file's
@@ -207,6 +223,8 @@ def predict_observations(observations: Observations, site: Site = MOUNT_LEMMON) 
     observations : Observations
         GCRS vectors (e.g. from ``lightcurve import``).
     site : Site
+    materials : (str, str)
+        Presets of the chassis and the solar array (`starlink_model`).
 
     Returns
     -------
@@ -216,23 +234,27 @@ def predict_observations(observations: Observations, site: Site = MOUNT_LEMMON) 
     km = 1000.0
     position = site_position(site, observations.mjd) - observations.observer_vectors / km
     q = starlink_attitude(position, position + observations.sun_vectors / km)
-    return _render(q, observations)
+    return _render(q, observations, materials)
 
 
-def _render(q: np.ndarray, observations: Observations) -> np.ndarray:
+def _render(q: np.ndarray, observations: Observations, materials: tuple[str, str]) -> np.ndarray:
     # The paper's model is two independent surfaces: no mutual shadowing.
-    return Renderer(starlink_model(), shadows="none").magnitude(
+    return Renderer(starlink_model(materials), shadows="none").magnitude(
         q, observations.sun_vectors, observations.observer_vectors
     )
 
 
-def predict_pomenis(table: pd.DataFrame | None = None) -> pd.DataFrame:
+def predict_pomenis(
+    table: pd.DataFrame | None = None, materials: tuple[str, str] = MATERIALS
+) -> pd.DataFrame:
     """Predicted vs measured magnitude of the Pomenis observations.
 
     Parameters
     ----------
     table : pandas.DataFrame, optional
         Observations as returned by :func:`read_pomenis` (default: all of them).
+    materials : (str, str)
+        Presets of the chassis and the solar array (`starlink_model`).
 
     Returns
     -------
@@ -244,7 +266,7 @@ def predict_pomenis(table: pd.DataFrame | None = None) -> pd.DataFrame:
 
     table = read_pomenis() if table is None else table
     observations, q = pomenis_geometry(table)
-    predicted = _render(q, observations)
+    predicted = _render(q, observations, materials)
     measured = observations.magnitudes
     return pd.DataFrame(
         {

@@ -59,6 +59,16 @@ def _reference(name, normal, light, view, params, tangent=None):
             math.sqrt((nu + 1) * (nv + 1)) / (8 * math.pi) * NH**exponent / (VH * max(NL, NV)) * F
         )
         return diffuse + specular
+    if name == "two-lobe":
+        G = min(1.0, 2 * NH * NV / VH, 2 * NH * NL / VH)
+        tan2 = (1 - NH**2) / NH**2
+        a2, m2 = p["ab"] ** 2, p["mn"] ** 2
+        ggx = a2 / (math.pi * NH**4 * (a2 + tan2) ** 2)  # Walter et al. 2007, eq. 33
+        beckmann = math.exp(-tan2 / m2) / (math.pi * m2 * NH**4)
+        fresnel_b = p["fb"] + (1 - p["fb"]) * (1 - VH) ** 5
+        fresnel_n = p["fn"] + (1 - p["fn"]) * (1 - VH) ** 5
+        lobes = p["rb"] * fresnel_b * ggx + p["rn"] * fresnel_n * beckmann
+        return p["rd"] / math.pi + lobes * G / (4 * NL * NV)
     if name == "lommel-seeliger":
         alpha = math.acos(max(-1.0, min(1.0, float(L @ V))))
         f = max(0.0, p["a"] * math.exp(-alpha / p["d"]) + p["k"] * alpha + 1)
@@ -91,6 +101,10 @@ PARAMETER_SETS = {
         {"rd": 0.5, "rs": 0.4, "nu": 10.0, "nv": 1000.0},
     ],
     "lommel-seeliger": [{"w": 0.8, "c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5}],
+    "two-lobe": [
+        {"rd": 0.1, "rb": 0.3, "ab": 0.2, "fb": 0.9, "rn": 0.5, "mn": 0.05, "fn": 0.04},
+        {"rd": 0.007, "rb": 0.02, "ab": 0.09, "fb": 1.0, "rn": 0.97, "mn": 0.04, "fn": 0.02},
+    ],
 }
 
 

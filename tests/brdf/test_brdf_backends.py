@@ -12,6 +12,7 @@ COSINE_FORMS = {
     "cook-torrance": brdf.cook_torrance_from_cosines,
     "ashikhmin-shirley": brdf.ashikhmin_shirley_from_cosines,
     "lommel-seeliger": brdf.lommel_seeliger_from_cosines,
+    "two-lobe": brdf.two_lobe_from_cosines,
 }
 
 

@@ -14,6 +14,7 @@ def test_available_and_describe():
         "cook-torrance",
         "ashikhmin-shirley",
         "lommel-seeliger",
+        "two-lobe",
     )
     info = brdf.describe("cook_torrance")  # "_" accepted for "-"
     assert info.name == "cook-torrance"

@@ -55,6 +55,10 @@ ENERGY_CONSERVING = [
     ("ashikhmin-shirley", {"rd": 1.0, "rs": 0.5, "nu": 100.0, "nv": 100.0}),
     ("ashikhmin-shirley", {"rd": 1.0, "rs": 1.0, "nu": 1e4, "nv": 1e4}),
     ("ashikhmin-shirley", {"rd": 1.0, "rs": 0.05, "nu": 10.0, "nv": 1000.0}),
+    ("two-lobe", {"rd": 0.0, "rb": 1.0, "ab": 0.01, "fb": 1.0, "rn": 0.0}),
+    ("two-lobe", {"rd": 0.0, "rb": 1.0, "ab": 3.0, "fb": 1.0, "rn": 0.0}),
+    ("two-lobe", {"rd": 0.0, "rb": 0.0, "rn": 1.0, "mn": 0.002, "fn": 1.0}),
+    ("two-lobe", {"rd": 0.2, "rb": 0.4, "ab": 0.3, "fb": 1.0, "rn": 0.4, "mn": 0.02, "fn": 1.0}),
 ]
 
 

@@ -6,13 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix, rotate
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.geometry import phase_angle_bisector
 from lightcurve.glint import Glint, detect_glints, glint_period, panel_normal
 from lightcurve.observations import Observations, datetime_to_mjd, validate_table
 from lightcurve.simulate import GaussianNoise, simulate
-from shapes import primitives
+from shapes import Material, primitives
 
 SIDEREAL_DAY = 86164.0905
 
@@ -152,3 +153,58 @@ def test_least_squares_normal_of_scattered_glints():
     np.testing.assert_allclose(body.normal, np.asarray(rotate(q, estimate.normal)), atol=1e-12)
     with pytest.raises(ValueError, match="no glint"):
         panel_normal([])
+
+
+def _two_lobe_array() -> Material:
+    preset = load_presets()["starlink-solar-array"]
+    return Material(preset.model, preset.params, name="solar array")
+
+
+def test_geo_box_wing_with_two_lobe_array_flashes_and_gives_its_normal(geo_night):
+    """Array material fitted to the Starlink lab table (diffuse + broad + mirror lobe): the
+    glint is found and the body-frame array normal recovered within 1°; turned away
+    (array facing along-track), the same object shows no glint."""
+    geometry, q0, omega, normal = geo_night
+    materials = {"solar_array": _two_lobe_array()}
+    shape = primitives.box_wing(array_normal=normal, materials=materials)
+    sim = simulate(geometry, shape, q0, omega, np.eye(3), GaussianNoise(0.02), seed=3)
+    glints = detect_glints(sim, false_alarm=1e-3).glints
+    assert len(glints) >= 1
+    attitudes = [sim.truth[np.argmin(np.abs(sim.times - g.time_s)), :4] for g in glints]
+    estimate = panel_normal(glints, attitudes)
+    assert math.degrees(math.acos(np.clip(estimate.normal @ normal, -1, 1))) < 1.0
+    away = primitives.box_wing(array_normal=(1.0, 0.0, 0.0), materials=materials)
+    sim = simulate(geometry, away, q0, omega, np.eye(3), GaussianNoise(0.02), seed=5)
+    assert detect_glints(sim, false_alarm=1e-3).glints == []
+
+
+def test_no_false_glint_on_a_panel_fading_towards_its_terminator():
+    """A flat panel fixed in inertial space, 56° off the night's PAB track, over an 8-hour
+    GEO night: its curve bends by 1.6 mag in the last 1.2 h. The local quadratic baseline
+    gives no glint at FA = 1e-3 for any of three noise draws; the straight line does."""
+    start = datetime_to_mjd(pd.DatetimeIndex([pd.Timestamp("2026-01-15T03:20", tz="UTC")]))[0]
+    orbit = CircularOrbit.geostationary(-110.0, start)
+    mjd = start + np.arange(0.0, 8 * 3600.0, 60.0) / 86400.0
+    geometry = orbit_geometry(orbit, Site(0.0, -110.0, 0.0, "equator"), mjd, "geo")
+    normal = np.array([0.0, -0.31, -0.95]) / math.hypot(0.31, 0.95)
+    x = np.cross([0.0, 0.0, 1.0], normal)
+    x /= np.linalg.norm(x)
+    q0 = quaternion_from_matrix(np.array([x, np.cross(normal, x), normal])[None])[0]
+    panel = primitives.plate(materials=Material("lambert", {"rd": 0.3}))
+    straight = 0
+    for seed in range(3):
+        sim = simulate(
+            geometry, panel, q0, np.zeros(3), np.eye(3), GaussianNoise(0.02), "none", seed
+        )
+        assert detect_glints(sim, false_alarm=1e-3).glints == []
+        straight += len(detect_glints(sim, false_alarm=1e-3, degree=1).glints)
+    assert straight >= 1
+
+
+def test_detection_options_are_checked():
+    obs = _noise_curve(np.random.default_rng(0), n=100)
+    with pytest.raises(ValueError, match="degree"):
+        detect_glints(obs, degree=4)
+    with pytest.raises(ValueError, match="max_flash_s"):
+        detect_glints(obs, max_flash_s=-1.0)
+    assert detect_glints(obs, max_flash_s=600.0).window_s == 2400.0

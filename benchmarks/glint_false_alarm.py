@@ -1,0 +1,138 @@
+"""False-alarm rate of the glint detector on glint-free light curves that bend like real ones.
+
+Each curve is one night of a GEO object seen from a ground site (60 s cadence, dark sky,
+object above 10°, out of the Earth's shadow): a flat Lambertian panel fixed in inertial space
+(random normal) plus a Lambertian sphere, in random proportions, with 0.02 mag Gaussian
+noise. The panel fades as the observer's line of sight turns towards its plane (the
+terminator of the panel), the sphere follows the phase angle over the night; neither has a
+specular lobe, so any detection is a false alarm. Curves are kept when the noiseless curve
+spans 0.3–4 mag (realistic curvature, not straight trends) and the panel stays lit and seen.
+The site (latitude ±40°), the object's longitude (±40° from the site's), the date (outside
+the eclipse seasons) and the mixture are drawn from a seeded generator.
+
+For each nominal per-curve false-alarm level FA the fraction of curves with any detection
+is reported (a curve has a detection at FA when its largest brightening, in units of its σ,
+exceeds the detector's threshold for FA: one baseline serves every level), for the
+local-quadratic baseline (the default) and, in the same run, for the running straight line
+(``degree = 1``) it replaces.
+
+    python -m benchmarks.glint_false_alarm [--curves 200] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from benchmarks._machine import machine_info
+from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
+from lightcurve.glint import detect_glints, detection_threshold
+from lightcurve.observations import Observations, datetime_to_mjd
+
+LEVELS = (1e-3, 1e-2, 0.05, 0.2)
+NOISE_MAG = 0.02
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _night(rng: np.random.Generator) -> Observations | None:
+    """Geometry of one night (up to 10 h around local midnight) of a random GEO object."""
+    lat = rng.uniform(-40.0, 40.0)
+    lon = rng.uniform(-180.0, 180.0)
+    # Days of the year outside the eclipse seasons (±25 d around the equinoxes).
+    day = rng.choice(np.r_[np.arange(105, 240), np.arange(290, 330), np.arange(0, 55)])
+    date = pd.Timestamp("2026-01-01", tz="UTC") + pd.Timedelta(days=int(day))
+    midnight = datetime_to_mjd(pd.DatetimeIndex([date]))[0] + 0.5 - lon / 360.0
+    mjd = midnight + np.arange(-5 * 3600.0, 5 * 3600.0, 60.0) / 86400.0
+    orbit = CircularOrbit.geostationary(lon + rng.uniform(-40.0, 40.0), mjd[0])
+    try:
+        return orbit_geometry(orbit, Site(lat, lon, 0.0, "site"), mjd, "geo")
+    except ValueError:  # never visible that night: draw again
+        return None
+
+
+def glint_free_curve(rng: np.random.Generator) -> tuple[Observations, float]:
+    """One accepted glint-free curve (noisy) and the span of its noiseless magnitudes."""
+    while True:
+        geometry = _night(rng)
+        if geometry is None or len(geometry.times) < 200:
+            continue
+        sun = _unit(geometry.sun_vectors)
+        view = _unit(geometry.observer_vectors)
+        alpha = np.arccos(np.clip(np.sum(sun * view, axis=1), -1, 1))
+        sphere = (2 / (3 * math.pi**2)) * (np.sin(alpha) + (math.pi - alpha) * np.cos(alpha))
+        for _ in range(50):  # objects for this night until one bends as required
+            normal = _unit(rng.normal(size=3))
+            panel = np.clip(sun @ normal, 0, None) * np.clip(view @ normal, 0, None) / math.pi
+            weight = rng.uniform(0.0, 1.0)
+            if np.min(panel) <= 0:
+                continue
+            mag = -2.5 * np.log10(weight * panel + (1 - weight) * sphere)
+            span = float(np.ptp(mag))
+            if not 0.3 <= span <= 4.0:
+                continue
+            noisy = mag + rng.normal(0.0, NOISE_MAG, len(mag))
+            table = geometry.table.assign(mag=noisy, mag_err=NOISE_MAG)
+            return Observations(table, geometry.metadata), span
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--curves", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    hits = {degree: dict.fromkeys(LEVELS, 0) for degree in (2, 1)}
+    spans, points = [], []
+    seconds = {2: 0.0, 1: 0.0}
+    for _ in range(args.curves):
+        curve, span = glint_free_curve(rng)
+        spans.append(span)
+        points.append(len(curve.times))
+        for degree in (2, 1):
+            start = time.perf_counter()
+            detection = detect_glints(curve, false_alarm=LEVELS[-1], degree=degree)
+            seconds[degree] += time.perf_counter() - start
+            peak = float(np.max(detection.excess_sigma))
+            for level in LEVELS:
+                hits[degree][level] += peak > detection_threshold(level, len(curve.times))
+    n = args.curves
+    result = {
+        "benchmark": "glint_false_alarm",
+        "seed": args.seed,
+        "curves": n,
+        "noise_mag": NOISE_MAG,
+        "points_per_curve": {"min": int(np.min(points)), "median": float(np.median(points))},
+        "curve_span_mag": {
+            "min": float(np.min(spans)),
+            "median": float(np.median(spans)),
+            "max": float(np.max(spans)),
+        },
+        "levels": [
+            {
+                "false_alarm": level,
+                "allowed_curves": level * n,
+                "local_quadratic": {"curves": hits[2][level], "rate": hits[2][level] / n},
+                "straight_line": {"curves": hits[1][level], "rate": hits[1][level] / n},
+                "holds": hits[2][level] <= level * n,
+            }
+            for level in LEVELS
+        ],
+        "seconds_per_detection": {
+            "local_quadratic": seconds[2] / n,
+            "straight_line": seconds[1] / n,
+        },
+        "machine": machine_info(),
+    }
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
