@@ -4,7 +4,7 @@ particle-filter speed study. Prints JSON.
     python -m benchmarks.inversion ukf  [--runs 50] [--seed 0]        # UKF, known shape
     python -m benchmarks.inversion mmae [--runs 30] [--seed 0]        # MMAE, truth in the bank
     python -m benchmarks.inversion mmae-outside [--runs 30] [--seed 0] [--extra itokawa,bennu]
-    python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # PF, uniform prior
+    python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # PF, no prior
     python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # PF, box symmetry modes
     python -m benchmarks.inversion speed                               # PF speed
     python -m benchmarks.inversion main-job [--files box_wing_tumbling,...]  # README job

@@ -977,7 +977,8 @@ def _polish(ctx: _Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.nd
 
     A few thousand particles in six or more dimensions leave a cluster's mean a few
     degrees from the best fit and its spread is no covariance (Itokawa, 20 min at 1 Hz,
-    run 1 of the particle-filter study, random seed 0: the mean ended 5.0° from the truth with NEES 86). And a
+    particle-filter study, random seed 0, run 1: the mean ended 5.0° from the truth with
+    NEES 86). And a
     cluster's weight is its particles' likelihood, not its basin's: on the same scenario
     (run 14) the truth's component, its particles a few degrees off, fell below 1 % to the
     reciprocity twin that the whole arc fits worse. So every cluster's final state
@@ -1137,8 +1138,8 @@ def _seed_particles(
     0.01°/s). The cap bounds the spread of the importance weights: a candidate the data
     barely constrain has a huge ``C_i`` and therefore a tiny mixture density, and the one
     of its particles that happened to fit then outweighed the whole cloud around the best
-    fit (box, particle-filter study, random seed 0, run 16: the search's best was 2.5° from the truth, the
-    PF ended 76° off; with the cap 1.8°). The log-weights
+    fit (box, particle-filter study, random seed 0, run 16: the search's best was 2.5°
+    from the truth, the PF ended 76° off; with the cap 1.8°). The log-weights
     ``log prior(x) − log q(x)`` (``q`` the mixture density) make the particles a sample of
     the prior, which the filter then updates with every measurement. The component each
     particle was drawn from is returned for mixture tracking.

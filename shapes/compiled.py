@@ -1,8 +1,8 @@
 """The compiled (render-ready) form of a facet model: coplanar facets merged by material.
 
 For an unshadowed facet the reflected flux depends on the facet only through its normal,
-area and material (docs/rendering.md, the measurement model), so facets with the same normal and the same
-material add up exactly into one effective facet, wherever they sit:
+area and material (docs/rendering.md, the measurement model), so facets with the same
+normal and the same material add up exactly into one effective facet, wherever they sit:
 ``Σ_i ρ(n, L, V) A_i (n·L)(n·V) = ρ(n, L, V) (Σ_i A_i) (n·L)(n·V)``. A CAD box-wing of
 thousands of triangles compiles to a dozen or two facets. For shadowed facets the visible
 fraction of the merged facet is the area-weighted mean of its members' fractions, which is
