@@ -31,107 +31,45 @@ from lightcurve.atomic import atomic_write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 
+
 #: Each command: the argument lists that prepare its inputs (``setup``, untimed) and the timed
 #: one. ``{tmp}`` is the command's scratch folder, ``{out}`` a fresh folder per timed run (a
 #: batch inversion resumes from outputs already written, so each run must start empty).
+def _argv(command: str) -> list[str]:
+    """A command line (after ``lightcurve``) as its argument list."""
+    return shlex.split(command)
+
+
+#: The README tour's geometry and simulation (``{where}``: ``{tmp}`` or ``{out}``).
+_GEOMETRY = "geometry --start 2024-03-10T04:48:00 --duration 1200 --geo -100 --out {tmp}/geo.csv"
+_SIMULATE = (
+    "simulate {tmp}/geo.csv --shape box_wing --q0 0,0,0,1 --omega0 0.5,1,-0.3 "
+    "--noise-mag 0.05 --seed 1 --out {where}/sim.csv"
+)
+_MAIN_JOB_SHAPES = "box_wing,rocket_body,box,cylinder,plate,cube"
+
 COMMANDS: dict[str, dict[str, list[list[str]]]] = {
     "simulate": {
-        "setup": [
-            [
-                "geometry",
-                "--start",
-                "2024-03-10T04:48:00",
-                "--duration",
-                "1200",
-                "--geo",
-                "-100",
-                "--out",
-                "{tmp}/geo.csv",
-            ]
-        ],
-        "timed": [
-            "simulate",
-            "{tmp}/geo.csv",
-            "--shape",
-            "box_wing",
-            "--q0",
-            "0,0,0,1",
-            "--omega0",
-            "0.5,1,-0.3",
-            "--noise-mag",
-            "0.05",
-            "--seed",
-            "1",
-            "--out",
-            "{out}/sim.csv",
-        ],
+        "setup": [_argv(_GEOMETRY)],
+        "timed": _argv(_SIMULATE.replace("{where}", "{out}")),
     },
     "tour-ukf": {
-        "setup": [
-            [
-                "geometry",
-                "--start",
-                "2024-03-10T04:48:00",
-                "--duration",
-                "1200",
-                "--geo",
-                "-100",
-                "--out",
-                "{tmp}/geo.csv",
-            ],
-            [
-                "simulate",
-                "{tmp}/geo.csv",
-                "--shape",
-                "box_wing",
-                "--q0",
-                "0,0,0,1",
-                "--omega0",
-                "0.5,1,-0.3",
-                "--noise-mag",
-                "0.05",
-                "--seed",
-                "1",
-                "--out",
-                "{tmp}/sim.csv",
-            ],
-        ],
-        "timed": [
-            "invert",
-            "{tmp}/sim.csv",
-            "--shape",
-            "box_wing",
-            "--method",
-            "ukf",
-            "--out",
-            "{out}/inv",
-        ],
+        "setup": [_argv(_GEOMETRY), _argv(_SIMULATE.replace("{where}", "{tmp}"))],
+        "timed": _argv("invert {tmp}/sim.csv --shape box_wing --method ukf --out {out}/inv"),
     },
     "main-job-file": {
         "setup": [],
-        "timed": [
-            "invert",
-            "data/observations/box_tumbling_ccd.csv",
-            "--shapes",
-            "box_wing,rocket_body,box,cylinder,plate,cube",
-            "--method",
-            "mmae",
-            "--out",
-            "{out}/mmae",
-        ],
+        "timed": _argv(
+            "invert data/observations/box_tumbling_ccd.csv --shapes "
+            f"{_MAIN_JOB_SHAPES} --method mmae --out {{out}}/mmae"
+        ),
     },
     "convex": {
         "setup": [],
-        "timed": [
-            "convex",
-            "data/observations/real/ariadne.csv",
-            "--pole",
-            "220,0",
-            "--period",
-            "5.76198",
-            "--out",
-            "{out}/ariadne",
-        ],
+        "timed": _argv(
+            "convex data/observations/real/ariadne.csv --pole 220,0 --period 5.76198 "
+            "--out {out}/ariadne"
+        ),
     },
 }
 

@@ -116,20 +116,12 @@ def build_builtin_library(
     library = ShapeLibrary(out or builtin_library_path())
     library.path.mkdir(parents=True, exist_ok=True)
     wanted = set(names) if names else set(_PRIMITIVES) | set(_ASTEROIDS) | set(_ARTICULATED)
-    for name, (build, options, description) in _PRIMITIVES.items():
-        if name not in wanted:
-            continue
-        model = build()
-        if options:
-            model = model.replace(**options)
-        library.add_model(
-            name,
-            model,
-            provenance={"description": description, "license": _OWN},
-            force=True,
-            samples=256,
-        )
-    for name, (build, options, parts, description) in _ARTICULATED.items():
+    generated = [(name, *entry, None) for name, entry in _PRIMITIVES.items()]
+    generated += [
+        (name, build, options, description, parts)
+        for name, (build, options, parts, description) in _ARTICULATED.items()
+    ]
+    for name, build, options, description, parts in generated:
         if name not in wanted:
             continue
         model = build()
