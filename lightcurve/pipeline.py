@@ -57,9 +57,10 @@ def resolve_shapes(
 ) -> list[str] | None:
     """Candidate shape names from the ``--shape``/``--shapes``/``--all-shapes`` options.
 
-    Names are only checked for form here; whether each exists is checked per input, so an
-    unknown name becomes that input's error record rather than stopping the batch. ``None``
-    (no option given) means every input names its own shape in its ``# shape:`` header.
+    Names given by an option must be in the library: a misspelt name is an error at start,
+    before any input is read. ``None`` (no option given) means every input names its own
+    shape in its ``# shape:`` header; an unknown name there becomes that input's error
+    record rather than stopping the batch.
     """
     from shapes import get_library
 
@@ -73,6 +74,14 @@ def resolve_shapes(
     names = [shape] if shape is not None else [s.strip() for s in shapes if s.strip()]
     if not names:
         raise ValueError("--shapes needs at least one name")
+    known = set(get_library(library).names())
+    unknown = [name for name in names if name not in known]
+    if unknown:
+        option = "--shape" if shape is not None else "--shapes"
+        raise ValueError(
+            f"{option}: no shape named {', '.join(map(repr, unknown))} in the library "
+            f"(known: {', '.join(sorted(known))}; `lightcurve shapes list`)"
+        )
     return names
 
 

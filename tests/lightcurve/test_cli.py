@@ -113,3 +113,14 @@ def test_threads_value_is_not_taken_for_the_command(capsys):
     assert _requested_threads(["--threads=3", "propagate", "--threads", "9"]) == "3"
     assert main(["--threads", "0", "propagate"]) == 2
     assert "at least 1" in capsys.readouterr().err
+
+
+def test_unknown_shape_option_fails_at_start_with_one_line(tmp_path, capsys):
+    """A misspelt --shapes name stops the batch before any input is read; nothing is left."""
+    out = tmp_path / "inv"
+    argv = ["invert", "data/observations", "--shapes", "box,boxx", "--method", "ukf"]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0
+    assert "'boxx'" in err and "box_wing" in err
+    assert not out.exists()
