@@ -41,6 +41,26 @@ def float_vector(*sizes: int) -> Callable[[str], np.ndarray]:
     return parse
 
 
+#: Largest accepted ``| |q| − 1 |`` of a quaternion typed by hand (rounded components).
+QUATERNION_NORM_TOLERANCE = 0.01
+
+
+def unit_quaternion(text: str) -> np.ndarray:
+    """Argparse type for a unit quaternion ``q1,q2,q3,q4`` (scalar last).
+
+    Components rounded by hand are accepted and normalised (norm within
+    :data:`QUATERNION_NORM_TOLERANCE` of 1); anything further off is an error, so that a
+    wrong value (``1,2,3,4``) is not silently turned into some rotation.
+    """
+    q = float_vector(4)(text)
+    norm = float(np.linalg.norm(q))
+    if not np.isfinite(norm) or abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+        raise argparse.ArgumentTypeError(
+            f"expected a unit quaternion q1,q2,q3,q4 (scalar last), got norm {norm:.4g} in {text!r}"
+        )
+    return q / norm
+
+
 def inertia_tensor(text: str) -> np.ndarray:
     """Argparse type for ``Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]`` → symmetric 3×3 tensor.
 

@@ -26,7 +26,7 @@ import sys
 import numpy as np
 
 from lightcurve.batch import run_batch
-from lightcurve.commands._args import float_vector
+from lightcurve.commands._args import float_vector, unit_quaternion
 from lightcurve.pipeline import SUMMARY_KEYS, invert_file, resolve_shapes
 
 NAME = "invert"
@@ -48,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", choices=("ukf", "mmae", "pf"), required=True)
     parser.add_argument(
         "--q0",
-        type=float_vector(4),
+        type=unit_quaternion,
         metavar="q1,q2,q3,q4",
         help="initial attitude guess at the first epoch, inertial→body",
     )

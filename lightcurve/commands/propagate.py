@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from filters.attitude import propagate, validate_inertia
-from lightcurve.commands._args import float_vector, inertia_tensor
+from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
 
 NAME = "propagate"
 HELP = "propagate a tumbling rigid body (torque-free) and print its state"
@@ -34,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--q0",
-        type=float_vector(4),
+        type=unit_quaternion,
         default=np.array([0.0, 0.0, 0.0, 1.0]),
         metavar="q1,q2,q3,q4",
         help="initial attitude quaternion, scalar last, inertial→body (default identity)",

@@ -29,7 +29,7 @@ import argparse
 import numpy as np
 
 from lightcurve import io
-from lightcurve.commands._args import float_vector, inertia_tensor
+from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
 from lightcurve.conditions import load_conditions
 from lightcurve.profiles import PROFILES
 from lightcurve.render import SHADOW_MODES
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--q0",
-        type=float_vector(4),
+        type=unit_quaternion,
         metavar="q1,q2,q3,q4",
         help="attitude at the first epoch, scalar last, inertial→body (torque-free, required);"
         " the fixed attitude of --profile inertial (default the identity)",

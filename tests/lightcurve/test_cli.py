@@ -124,3 +124,18 @@ def test_unknown_shape_option_fails_at_start_with_one_line(tmp_path, capsys):
     assert err.count("\n") == 0
     assert "'boxx'" in err and "box_wing" in err
     assert not out.exists()
+
+
+def test_q0_must_be_a_unit_quaternion(tmp_path, capsys):
+    """``--q0 1,2,3,4`` is an error, not some rotation; rounded components are normalised."""
+    out = tmp_path / "state.csv"
+    try:
+        main(["propagate", "--q0", "1,2,3,4", "--duration", "10", "--out", str(out)])
+    except SystemExit as exc:
+        assert exc.code == 2
+    assert "unit quaternion" in capsys.readouterr().err
+    assert not out.exists()
+    argv = ["propagate", "--q0", "0,0,0.6,0.801", "--duration", "10", "--step", "10"]
+    assert main([*argv, "--out", str(out)]) == 0
+    q = pd.read_csv(out)[["q1", "q2", "q3", "q4"]].to_numpy()[0]
+    np.testing.assert_allclose(np.linalg.norm(q), 1.0, rtol=1e-12)
