@@ -25,6 +25,7 @@ __all__ = [
     "atomic_write_table",
     "atomic_write_text",
     "json_ready",
+    "output_folder",
 ]
 
 
@@ -45,8 +46,20 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = "") -> Iterator[Pa
         Where to write. Removed if the block raises.
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix + ".tmp", dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OSError(f"cannot write {target}: {_blocking_file(target.parent)} is a file") from None
+    except OSError as exc:
+        raise OSError(f"cannot write {target}: {exc.strerror or exc}") from None
+    if target.is_dir():
+        raise IsADirectoryError(f"cannot write {target}: it is a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{target.name}.", suffix=suffix + ".tmp", dir=target.parent
+        )
+    except OSError as exc:  # unwritable folder, read-only or special file system
+        raise OSError(f"cannot write {target}: {exc.strerror or exc}") from None
     os.close(fd)
     tmp_path = Path(tmp)
     umask = os.umask(0)
@@ -60,6 +73,29 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = "") -> Iterator[Pa
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def output_folder(folder: str | os.PathLike[str]) -> Path:
+    """Create the output folder ``folder`` (and its parents), with a one-line error naming
+    it when a file stands in the way or the location is not writable."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OSError(
+            f"cannot create the output folder {folder}: {_blocking_file(folder)} is a file"
+        ) from None
+    except OSError as exc:
+        raise OSError(f"cannot create the output folder {folder}: {exc.strerror or exc}") from None
+    return folder
+
+
+def _blocking_file(folder: Path) -> Path:
+    """The first existing non-folder on the way to ``folder`` (what stops ``mkdir``)."""
+    for candidate in (*reversed(folder.parents), folder):
+        if candidate.exists() and not candidate.is_dir():
+            return candidate
+    return folder
 
 
 def atomic_write_text(target: str | os.PathLike[str], text: str) -> None:

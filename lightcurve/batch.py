@@ -32,7 +32,7 @@ from typing import Any
 import pandas as pd
 from tqdm.auto import tqdm
 
-from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
+from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready, output_folder
 
 __all__ = ["INPUT_SUFFIXES", "collect_inputs", "run_batch", "summary_path"]
 
@@ -199,9 +199,8 @@ def run_batch(
         The summary table (one row per input, in input order).
     """
     options = dict(options or {})
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = collect_inputs(inputs)
+    files = collect_inputs(inputs)  # bad inputs fail before the output folder exists
+    out_dir = output_folder(out_dir)
     stale = _remove_stale_temporaries(out_dir)
     if stale:
         logger.info("removed %d temporary file(s) of an interrupted run", stale)

@@ -139,3 +139,16 @@ def test_q0_must_be_a_unit_quaternion(tmp_path, capsys):
     assert main([*argv, "--out", str(out)]) == 0
     q = pd.read_csv(out)[["q1", "q2", "q3", "q4"]].to_numpy()[0]
     np.testing.assert_allclose(np.linalg.norm(q), 1.0, rtol=1e-12)
+
+
+def test_output_blocked_by_a_file_is_one_line_and_leaves_nothing(tmp_path, capsys):
+    """An --out that cannot be a folder is named in one line; bad inputs create no folder."""
+    blocker = tmp_path / "taken"
+    blocker.write_text("")
+    argv = ["invert", "data/observations/box_tumbling_ccd.csv", "--shapes", "box"]
+    assert main([*argv, "--method", "ukf", "--out", str(blocker / "inv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{blocker} is a file" in err
+    missing = ["invert", str(tmp_path / "none.csv"), "--shapes", "box", "--method", "ukf"]
+    assert main([*missing, "--out", str(tmp_path / "inv")]) == 2
+    assert not (tmp_path / "inv").exists()
