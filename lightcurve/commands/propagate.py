@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-from filters.attitude import propagate, validate_inertia
+from filters.attitude import propagate, quaternion_canonical, validate_inertia
 from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
 
 NAME = "propagate"
@@ -58,11 +58,12 @@ def run(args: argparse.Namespace) -> int:
     times = np.arange(0.0, args.duration + 0.5 * args.step, args.step)
     x0 = np.concatenate([args.q0, np.deg2rad(args.omega0)])
     states = propagate(x0, times, inertia)
+    q = quaternion_canonical(states[:, :4])  # q4 ≥ 0, as every other command writes it
     w = states[:, 4:]
     table = pd.DataFrame(
         {
             "t_s": times,
-            **{f"q{i + 1}": states[:, i] for i in range(4)},
+            **{f"q{i + 1}": q[:, i] for i in range(4)},
             **{f"w{axis}_deg_s": np.rad2deg(w[:, k]) for k, axis in enumerate("xyz")},
             "energy": 0.5 * np.einsum("ni,ij,nj->n", w, inertia, w),
             "h_norm": np.linalg.norm(w @ inertia.T, axis=1),
