@@ -46,12 +46,7 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = "") -> Iterator[Pa
         Where to write. Removed if the block raises.
     """
     target = Path(target)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OSError(f"cannot write {target}: {_blocking_file(target.parent)} is a file") from None
-    except OSError as exc:
-        raise OSError(f"cannot write {target}: {exc.strerror or exc}") from None
+    output_folder(target.parent)
     if target.is_dir():
         raise IsADirectoryError(f"cannot write {target}: it is a folder")
     try:
