@@ -108,7 +108,7 @@ class FormationResult:
     fixed_ambiguities : list of dict[int, int]
         Fixed double-difference ambiguities of each epoch by PRN.
     smoothing : list of dict[int, int]
-        Epochs averaged by each satellite's carrier smoothing, per epoch.
+        Epochs since each satellite's carrier smoothing (re)started, per epoch.
     elapsed_s : float
     """
 

@@ -174,7 +174,7 @@ class RelativeSolution:
     ambiguities : dict[int, int]
         Fixed double-difference ambiguities by PRN (reference: ``reference``).
     smoothing : dict[int, int]
-        Epochs averaged by each satellite's carrier smoothing (1 after a restart).
+        Epochs since each satellite's carrier smoothing (re)started, this one included.
     message : str
         Why there is no fix, or which resets happened.
     """

@@ -104,7 +104,8 @@ class CarrierSmoothing:
         variance : (m,) numpy.ndarray
             Its error variance (m²) from the model above.
         epochs : (m,) numpy.ndarray of int
-            Epochs averaged in each channel (1 right after a restart).
+            Epochs since each channel's (re)start, this one included (1 right after a
+            restart); the average spans ``min(epochs, window / Δt)`` of them.
         """
         prn = np.asarray(prn, dtype=int)
         p = np.asarray(code, dtype=float)
