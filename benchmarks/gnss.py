@@ -15,7 +15,8 @@ the measured figures:
   raw code (snapshot) and carrier-smoothed code solutions (all epochs, and ``t ≥ 60 s``),
   of the time-differenced carrier-phase velocity, and of the navigation filter
   (``filters.relnav``) over ``t ≥ 60 s`` fed with the navigator's fixes (fixed, else
-  carrier-smoothed), with raw code fixes and with carrier-smoothed code fixes;
+  carrier-smoothed), with raw code fixes and with carrier-smoothed code fixes, and their
+  mean position NEES (3 for a consistent filter);
 * for the two code solutions: the predicted RMS from their covariances, the RMS of the errors
   normalised by the predicted standard deviations (1 when the covariance is right), the mean
   error (bias) and, for the raw one, the dilution of precision per axis (predicted RMS over
@@ -99,6 +100,7 @@ def main() -> None:
     ttff = np.array([np.inf if r.time_to_first_fix is None else r.time_to_first_fix for r in runs])
     late = [r.times >= args.settle for r in runs]
     satellites = np.concatenate([r.satellites for r in runs])
+    pairs = list(zip(runs, late, strict=True))
     sd_code_sigma = np.sqrt(2.0) * scenario.receiver.code_sigma
 
     def code_scores(errors: str, std: str, dop: bool) -> dict[str, object]:
@@ -160,6 +162,14 @@ def main() -> None:
             "carrier_smoothed": axis_rms(
                 [r.filtered_smoothed_errors[w] for r, w in zip(runs, late, strict=True)]
             ),
+        },
+        "filtered_position_nees_mean": {  # 3 for a consistent filter
+            name: float(np.nanmean(np.concatenate([r.filtered_nees[key][w] for r, w in pairs])))
+            for name, key in (
+                ("best", "best"),
+                ("code_only", "code"),
+                ("carrier_smoothed", "smoothed"),
+            )
         },
         "satellites_in_common_view": {
             "min": int(satellites.min()),

@@ -99,6 +99,9 @@ class FormationResult:
     filtered_errors, filtered_code_errors, filtered_smoothed_errors : (T, 3) numpy.ndarray
         Navigation-filter position errors with the best fixes (fixed, else carrier-smoothed
         code), with raw code fixes and with carrier-smoothed code fixes.
+    filtered_nees : dict[str, (T,) numpy.ndarray]
+        Position NEES ``eᵀ P⁻¹ e`` of those filters (keys ``best``, ``code``, ``smoothed``;
+        3 on average for a consistent filter).
     time_to_first_fix : float or None
         Seconds from the first epoch to the first fixed epoch.
     detected_slips : list of (time, prn)
@@ -125,6 +128,7 @@ class FormationResult:
     filtered_errors: np.ndarray
     filtered_code_errors: np.ndarray
     filtered_smoothed_errors: np.ndarray
+    filtered_nees: dict[str, np.ndarray]
     time_to_first_fix: float | None
     detected_slips: list[tuple[float, int]]
     references: np.ndarray
@@ -198,6 +202,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         np.full((steps, 3), np.nan) for _ in range(6)
     )
     filtered = {key: np.full((steps, 3), np.nan) for key in ("best", "code", "smoothed")}
+    nees = {key: np.full(steps, np.nan) for key in filtered}
     filters: dict[str, RelativeNavigationFilter] = {}
     detected: list[tuple[float, int]] = []
     references = np.full(steps, -1)
@@ -246,7 +251,8 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
             inertial_mean = (baseline[k] - baseline[k - 1]) / sc.period
             vel_err[k] = rot @ (sol.velocity - inertial_mean)
         for key, kf in filters.items():
-            filtered[key][k] = kf.x[:3] - hill[k]
+            filtered[key][k] = e = kf.x[:3] - hill[k]
+            nees[key][k] = e @ np.linalg.solve(kf.P[:3, :3], e)
     fixed = status == "fixed"
     ttff = float(t[np.argmax(fixed)] - t[0]) if fixed.any() else None
     return FormationResult(
@@ -263,6 +269,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         filtered_errors=filtered["best"],
         filtered_code_errors=filtered["code"],
         filtered_smoothed_errors=filtered["smoothed"],
+        filtered_nees=nees,
         time_to_first_fix=ttff,
         detected_slips=detected,
         references=references,
