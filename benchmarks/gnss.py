@@ -11,14 +11,21 @@ the measured figures:
 * ``fixed_within_60s_rate``: runs whose first fixed epoch is at most 60 s after the first;
 * ``wrong_fix_rate``: runs with any fixed epoch carrying wrong integers;
 * time to first fix (mean, median, 99th percentile, max);
-* per-axis RMS (target Hill frame: radial, along-track, cross-track) of the snapshot fixed
-  and code-only solutions, of the time-differenced carrier-phase velocity, and of the
-  navigation filter (``filters.relnav``) fed with the best and with code-only fixes over
-  ``t ≥ 60 s``;
+* per-axis RMS (target Hill frame: radial, along-track, cross-track) of the epoch-wise fixed,
+  raw code (snapshot) and carrier-smoothed code solutions (all epochs, and ``t ≥ 60 s``),
+  of the time-differenced carrier-phase velocity, and of the navigation filter
+  (``filters.relnav``) over ``t ≥ 60 s`` fed with the navigator's fixes (fixed, else
+  carrier-smoothed), with raw code fixes and with carrier-smoothed code fixes, and their
+  mean position NEES (3 for a consistent filter);
+* for the two code solutions: the predicted RMS from their covariances, the RMS of the errors
+  normalised by the predicted standard deviations (1 when the covariance is right), the mean
+  error (bias) and, for the raw one, the dilution of precision per axis (predicted RMS over
+  the single-difference code noise ``√2 σ``);
 * satellites in common view, wall time and the machine.
 
     python -m benchmarks.gnss [--runs 200] [--seed 0] [--duration 120] [--ratio 3]
-                              [--min-success-rate 0.999] [--almanac FILE] [--out gnss.json]
+                              [--min-success-rate 0.999] [--window 100] [--almanac FILE]
+                              [--out gnss.json]
 """
 
 from __future__ import annotations
@@ -63,6 +70,7 @@ def main() -> None:
     parser.add_argument("--baseline", type=float, default=1000.0, help="baseline length (m)")
     parser.add_argument("--ratio", type=float, default=3.0, help="ratio-test threshold")
     parser.add_argument("--min-success-rate", type=float, default=0.999)
+    parser.add_argument("--window", type=float, default=100.0, help="carrier smoothing (s)")
     parser.add_argument("--settle", type=float, default=60.0, help="filter RMS from (s)")
     parser.add_argument("--almanac", type=Path, default=ALMANAC, help="YUMA almanac file")
     parser.add_argument("--out", type=Path, help="also write the JSON here")
@@ -74,7 +82,10 @@ def main() -> None:
         duration=args.duration,
         baseline=args.baseline,
         solver=dataclasses.replace(
-            base.solver, ratio_threshold=args.ratio, min_success_rate=args.min_success_rate
+            base.solver,
+            ratio_threshold=args.ratio,
+            min_success_rate=args.min_success_rate,
+            smoothing_window=args.window,
         ),
     )
     runs = []
@@ -89,6 +100,26 @@ def main() -> None:
     ttff = np.array([np.inf if r.time_to_first_fix is None else r.time_to_first_fix for r in runs])
     late = [r.times >= args.settle for r in runs]
     satellites = np.concatenate([r.satellites for r in runs])
+    pairs = list(zip(runs, late, strict=True))
+    sd_code_sigma = np.sqrt(2.0) * scenario.receiver.code_sigma
+
+    def code_scores(errors: str, std: str, dop: bool) -> dict[str, object]:
+        e = [getattr(r, errors) for r in runs]
+        s = [getattr(r, std) for r in runs]
+        predicted = axis_rms(s)
+        scores = {
+            "rms_m": axis_rms(e),
+            "rms_m_after_settle": axis_rms([x[w] for x, w in zip(e, late, strict=True)]),
+            "predicted_rms_m": predicted,
+            "normalised_error_rms": axis_rms([x / y for x, y in zip(e, s, strict=True)]),
+            "mean_error_m": dict(
+                zip(AXES, np.nanmean(np.concatenate(e), axis=0).tolist(), strict=True)
+            ),
+        }
+        if dop:
+            scores["dilution_of_precision"] = {k: v / sd_code_sigma for k, v in predicted.items()}
+        return scores
+
     report = {
         "benchmark": "gnss",
         "almanac": str(args.almanac.name),
@@ -112,9 +143,15 @@ def main() -> None:
             "max": finite_or_none(np.max(ttff)),
         },
         "fixed_epoch_fraction": float(np.mean(np.concatenate([r.status for r in runs]) == "fixed")),
+        "smoothing_window_s": args.window,
         "snapshot_rms_m": {
             "fixed": axis_rms([r.fixed_errors for r in runs]),
             "code_only": axis_rms([r.code_errors for r in runs]),
+            "carrier_smoothed": axis_rms([r.smoothed_errors for r in runs]),
+        },
+        "code_solutions": {
+            "raw_snapshot": code_scores("code_errors", "code_std", dop=True),
+            "carrier_smoothed": code_scores("smoothed_errors", "smoothed_std", dop=False),
         },
         "velocity_rms_m_s": axis_rms([r.velocity_errors for r in runs]),
         "filtered_rms_m": {
@@ -122,6 +159,17 @@ def main() -> None:
             "code_only": axis_rms(
                 [r.filtered_code_errors[w] for r, w in zip(runs, late, strict=True)]
             ),
+            "carrier_smoothed": axis_rms(
+                [r.filtered_smoothed_errors[w] for r, w in zip(runs, late, strict=True)]
+            ),
+        },
+        "filtered_position_nees_mean": {  # 3 for a consistent filter
+            name: float(np.nanmean(np.concatenate([r.filtered_nees[key][w] for r, w in pairs])))
+            for name, key in (
+                ("best", "best"),
+                ("code_only", "code"),
+                ("carrier_smoothed", "smoothed"),
+            )
         },
         "satellites_in_common_view": {
             "min": int(satellites.min()),

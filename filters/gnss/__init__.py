@@ -12,9 +12,11 @@ differencing
     Common view, single and double differences and their correlated covariance.
 lambda_
     LAMBDA decorrelation and integer search, ratio test, bootstrapped success rate.
+smoothing
+    Carrier-smoothed code (Hatch filter) of between-receiver single differences.
 relative
-    Code, float and fixed double-difference relative positioning epoch by epoch, with
-    cycle-slip detection and time-differenced carrier-phase velocity.
+    Code (raw and carrier-smoothed), float and fixed double-difference relative positioning
+    epoch by epoch, with cycle-slip detection and time-differenced carrier-phase velocity.
 formation
     Seeded simulation of a two-spacecraft LEO formation and its scores.
 

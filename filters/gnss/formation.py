@@ -7,10 +7,11 @@ direction sweeps radial, along-track and cross-track. Each seeded run draws the 
 within a day of the almanac's reference time, the orbit's node and phase, and the formation
 phase ``α``; simulates both receivers (:mod:`filters.gnss.measurements`) and runs
 :class:`filters.gnss.relative.RelativeGnssSolver`. Scores: time to first fix, whether any
-fixed epoch has wrong integers, epoch-wise (snapshot) errors of the fixed and code-only
-solutions in the target's Hill frame, the velocity error, and the errors of the
-navigation filter of :mod:`filters.relnav` fed with the fixes (fixed when available,
-otherwise code-only) and, separately, with code-only fixes.
+fixed epoch has wrong integers, epoch-wise errors of the fixed, the raw code (snapshot) and
+the carrier-smoothed code solutions in the target's Hill frame with their predicted standard
+deviations, the velocity error, and the errors of the navigation filter of
+:mod:`filters.relnav` fed with the navigator's fixes (fixed when available, otherwise
+carrier-smoothed code) and, separately, with raw code and with carrier-smoothed code fixes.
 """
 
 from __future__ import annotations
@@ -87,13 +88,20 @@ class FormationResult:
     satellites : (T,) numpy.ndarray of int
     wrong : (T,) bool numpy.ndarray
         Fixed epochs whose integers differ from the truth.
-    fixed_errors, code_errors : (T, 3) numpy.ndarray
-        Snapshot errors of the fixed (NaN where not fixed) and code-only solutions.
+    fixed_errors, code_errors, smoothed_errors : (T, 3) numpy.ndarray
+        Errors of the fixed (NaN where not fixed), the raw code (snapshot) and the
+        carrier-smoothed code solutions.
+    code_std, smoothed_std : (T, 3) numpy.ndarray
+        Predicted standard deviations of the raw and carrier-smoothed code solutions.
     velocity_errors : (T, 3) numpy.ndarray
         Error of the time-differenced carrier-phase velocity against the mean true velocity
         over the interval (NaN where unavailable).
-    filtered_errors, filtered_code_errors : (T, 3) numpy.ndarray
-        Navigation-filter position errors with the best fixes and with code-only fixes.
+    filtered_errors, filtered_code_errors, filtered_smoothed_errors : (T, 3) numpy.ndarray
+        Navigation-filter position errors with the best fixes (fixed, else carrier-smoothed
+        code), with raw code fixes and with carrier-smoothed code fixes.
+    filtered_nees : dict[str, (T,) numpy.ndarray]
+        Position NEES ``eᵀ P⁻¹ e`` of those filters (keys ``best``, ``code``, ``smoothed``;
+        3 on average for a consistent filter).
     time_to_first_fix : float or None
         Seconds from the first epoch to the first fixed epoch.
     detected_slips : list of (time, prn)
@@ -102,6 +110,8 @@ class FormationResult:
         Reference satellite of each epoch (−1 without a relative solution).
     fixed_ambiguities : list of dict[int, int]
         Fixed double-difference ambiguities of each epoch by PRN.
+    smoothing : list of dict[int, int]
+        Epochs since each satellite's carrier smoothing (re)started, per epoch.
     elapsed_s : float
     """
 
@@ -111,13 +121,19 @@ class FormationResult:
     wrong: np.ndarray
     fixed_errors: np.ndarray
     code_errors: np.ndarray
+    smoothed_errors: np.ndarray
+    code_std: np.ndarray
+    smoothed_std: np.ndarray
     velocity_errors: np.ndarray
     filtered_errors: np.ndarray
     filtered_code_errors: np.ndarray
+    filtered_smoothed_errors: np.ndarray
+    filtered_nees: dict[str, np.ndarray]
     time_to_first_fix: float | None
     detected_slips: list[tuple[float, int]]
     references: np.ndarray
     fixed_ambiguities: list[dict[int, int]]
+    smoothing: list[dict[int, int]]
     elapsed_s: float
 
     @property
@@ -182,13 +198,16 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
     status = np.empty(steps, dtype=object)
     satellites = np.zeros(steps, dtype=int)
     wrong = np.zeros(steps, dtype=bool)
-    fixed_err, code_err, vel_err, filt_err, filt_code_err = (
-        np.full((steps, 3), np.nan) for _ in range(5)
+    fixed_err, code_err, smooth_err, code_std, smooth_std, vel_err = (
+        np.full((steps, 3), np.nan) for _ in range(6)
     )
+    filtered = {key: np.full((steps, 3), np.nan) for key in ("best", "code", "smoothed")}
+    nees = {key: np.full(steps, np.nan) for key in filtered}
     filters: dict[str, RelativeNavigationFilter] = {}
     detected: list[tuple[float, int]] = []
     references = np.full(steps, -1)
     fixed_ambiguities: list[dict[int, int]] = []
+    smoothing: list[dict[int, int]] = []
     for k in range(steps):
         sol = solver.process(
             gps_t[k], obs.prn, obs.code[0, k], obs.phase[0, k], obs.code[1, k], obs.phase[1, k]
@@ -197,6 +216,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         detected.extend((float(t[k]), p) for p in sol.slips)
         references[k] = -1 if sol.reference is None else sol.reference
         fixed_ambiguities.append(sol.ambiguities)
+        smoothing.append(sol.smoothing)
         rot = rotation[k]
         for kf in filters.values():
             kf.predict(np.zeros(3), sc.period)
@@ -204,16 +224,22 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
             # Start from the first code solution; the velocity prior spans the formation's
             # relative speeds (n ρ ≈ 1 m/s for 1 km).
             p0 = np.zeros((6, 6))
-            p0[:3, :3] = rot @ sol.code_covariance @ rot.T
+            p0[:3, :3] = rot @ sol.snapshot_covariance @ rot.T
             p0[3:, 3:] = (2.0 * n * sc.baseline + 0.1) ** 2 * np.eye(3)
-            x0 = np.concatenate([rot @ sol.code_position, np.zeros(3)])
+            x0 = np.concatenate([rot @ sol.snapshot_position, np.zeros(3)])
             filters = {
                 key: RelativeNavigationFilter(x0, p0, n, sc.filter_accelerometer_noise, "none")
-                for key in ("best", "code")
+                for key in filtered
             }
         if sol.status != "none":
-            code_err[k] = rot @ sol.code_position - hill[k]
-            filters["code"].update(rot @ sol.code_position, rot @ sol.code_covariance @ rot.T)
+            code_err[k] = rot @ sol.snapshot_position - hill[k]
+            smooth_err[k] = rot @ sol.code_position - hill[k]
+            code_std[k] = np.sqrt(np.diag(rot @ sol.snapshot_covariance @ rot.T))
+            smooth_std[k] = np.sqrt(np.diag(rot @ sol.code_covariance @ rot.T))
+            filters["code"].update(
+                rot @ sol.snapshot_position, rot @ sol.snapshot_covariance @ rot.T
+            )
+            filters["smoothed"].update(rot @ sol.code_position, rot @ sol.code_covariance @ rot.T)
             best, best_cov = sol.code_position, sol.code_covariance
             if sol.status == "fixed":
                 fixed_err[k] = rot @ sol.position - hill[k]
@@ -224,9 +250,9 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
             # Mean inertial velocity over the interval, compared in the Hill frame at its end.
             inertial_mean = (baseline[k] - baseline[k - 1]) / sc.period
             vel_err[k] = rot @ (sol.velocity - inertial_mean)
-        if filters:
-            filt_err[k] = filters["best"].x[:3] - hill[k]
-            filt_code_err[k] = filters["code"].x[:3] - hill[k]
+        for key, kf in filters.items():
+            filtered[key][k] = e = kf.x[:3] - hill[k]
+            nees[key][k] = e @ np.linalg.solve(kf.P[:3, :3], e)
     fixed = status == "fixed"
     ttff = float(t[np.argmax(fixed)] - t[0]) if fixed.any() else None
     return FormationResult(
@@ -236,12 +262,18 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
         wrong=wrong,
         fixed_errors=fixed_err,
         code_errors=code_err,
+        smoothed_errors=smooth_err,
+        code_std=code_std,
+        smoothed_std=smooth_std,
         velocity_errors=vel_err,
-        filtered_errors=filt_err,
-        filtered_code_errors=filt_code_err,
+        filtered_errors=filtered["best"],
+        filtered_code_errors=filtered["code"],
+        filtered_smoothed_errors=filtered["smoothed"],
+        filtered_nees=nees,
         time_to_first_fix=ttff,
         detected_slips=detected,
         references=references,
         fixed_ambiguities=fixed_ambiguities,
+        smoothing=smoothing,
         elapsed_s=time.perf_counter() - clock,
     )

@@ -6,8 +6,9 @@ measurement*, sec. 2.2.1.1): common-view selection (fewer than five common satel
 relative fix), code double-difference positioning with the highest satellite as reference,
 ambiguity initialisation from carrier-phase double differences over several epochs (float
 least squares, then LAMBDA, accepted by the ratio test and the success-rate bound), and
-fixed carrier-phase positioning; plus relative velocity from time-differenced carrier phase
-and cycle-slip detection with re-initialisation.
+fixed carrier-phase positioning; plus relative velocity from time-differenced carrier phase,
+cycle-slip detection with re-initialisation, and a carrier-smoothed code solution (Hatch
+filter, :mod:`filters.gnss.smoothing`) that needs no integer ambiguity.
 
 **Model** (epoch ``k``, ``m`` common satellites, reference ``q``; all in the week-start
 inertial frame of :mod:`filters.gnss.constellation`). With the baseline
@@ -41,6 +42,17 @@ if the reference slipped or the redundancy runs out. The same least squares give
 velocity ``δb / Δt`` (mean over the interval). The fixed solution is validated each epoch by
 a χ² test of its phase residuals; a failure (a wrong fix or an undetected slip) re-initialises
 all ambiguities.
+
+**Code solutions.** The snapshot code solution is the least squares of one epoch's code
+double differences (``Q_P`` above); its error is the single-difference code noise
+``√2 σ_P`` times the dilution of precision of the common-view geometry, independent from
+epoch to epoch. The carrier-smoothed solution is the same least squares of the Hatch-filtered
+single-difference codes, whose variances ``v_s`` (:mod:`filters.gnss.smoothing`: about
+``2 σ_P² / n`` after ``n`` epochs) give ``Q = diag(v_s, s ≠ q) + v_q 1 1ᵀ``. A satellite's
+channel restarts when it enters common view, when a cycle slip is detected on it, and every
+channel restarts when the carrier's continuity cannot be checked (no previous epoch, too few
+satellites, a slip on the reference or the fixed solution failing its residual test). The
+smoothed solution is what the navigator falls back on without a fix (``code_position``).
 """
 
 from __future__ import annotations
@@ -61,6 +73,7 @@ from filters.gnss.differencing import (
 )
 from filters.gnss.lambda_ import lambda_method
 from filters.gnss.measurements import L1_WAVELENGTH, elevations, transmit_positions
+from filters.gnss.smoothing import CarrierSmoothing
 
 __all__ = [
     "AmbiguityNormals",
@@ -94,6 +107,8 @@ class RelativeGnssConfig:
         False-alarm probability of the cycle-slip χ² test.
     fix_false_alarm : float
         False-alarm probability of the χ² test of the fixed solution's residuals.
+    smoothing_window : float
+        Window of the carrier smoothing of the code (s); ``0`` leaves the code raw.
     """
 
     code_sigma: float = 0.5
@@ -104,6 +119,7 @@ class RelativeGnssConfig:
     min_satellites: int = MIN_COMMON_SATELLITES
     slip_false_alarm: float = 1e-4
     fix_false_alarm: float = 1e-5
+    smoothing_window: float = 100.0
 
     def __post_init__(self) -> None:
         for name in ("code_sigma", "phase_sigma", "wavelength"):
@@ -115,6 +131,8 @@ class RelativeGnssConfig:
             raise ValueError(f"min_success_rate must be in [0, 1), got {self.min_success_rate}")
         if self.min_satellites < 5:
             raise ValueError(f"min_satellites must be >= 5, got {self.min_satellites}")
+        if not self.smoothing_window >= 0:
+            raise ValueError(f"smoothing_window must be >= 0 s, got {self.smoothing_window}")
         for name in ("slip_false_alarm", "fix_false_alarm"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)}")
@@ -138,7 +156,12 @@ class RelativeSolution:
     position, covariance : (3,), (3, 3) numpy.ndarray
         Baseline ``x_rover − x_base`` of the best solution and its covariance (NaN for none).
     code_position, code_covariance : (3,), (3, 3) numpy.ndarray
-        Code-only double-difference solution (independent from epoch to epoch).
+        Ambiguity-free solution: double differences of the carrier-smoothed code (the
+        navigator's fallback without a fix); the snapshot solution when
+        ``smoothing_window`` is 0 or every channel has just restarted.
+    snapshot_position, snapshot_covariance : (3,), (3, 3) numpy.ndarray
+        Raw code double-difference solution of this epoch alone (independent from epoch to
+        epoch).
     velocity, velocity_covariance : (3,), (3, 3) numpy.ndarray
         Mean relative velocity since the previous epoch from time-differenced carrier phase
         (NaN when unavailable).
@@ -150,6 +173,8 @@ class RelativeSolution:
         PRNs whose ambiguities were re-initialised after a detected cycle slip.
     ambiguities : dict[int, int]
         Fixed double-difference ambiguities by PRN (reference: ``reference``).
+    smoothing : dict[int, int]
+        Epochs since each satellite's carrier smoothing (re)started, this one included.
     message : str
         Why there is no fix, or which resets happened.
     """
@@ -164,11 +189,14 @@ class RelativeSolution:
     code_covariance: np.ndarray
     velocity: np.ndarray
     velocity_covariance: np.ndarray
+    snapshot_position: np.ndarray = field(default_factory=lambda: _NAN3)
+    snapshot_covariance: np.ndarray = field(default_factory=lambda: _NAN33)
     fixed: int = 0
     ratio: float = float("nan")
     success_rate: float = float("nan")
     slips: tuple[int, ...] = ()
     ambiguities: dict[int, int] = field(default_factory=dict)
+    smoothing: dict[int, int] = field(default_factory=dict)
     message: str = ""
 
 
@@ -435,9 +463,10 @@ class RelativeGnssSolver:
         self._base: np.ndarray | None = None
 
     def reset(self) -> None:
-        """Forget all ambiguities and the previous epoch (re-initialisation)."""
+        """Forget all ambiguities, the previous epoch and the carrier smoothing."""
         self.ambiguities: AmbiguityNormals | None = None
         self._previous: dict[str, Any] | None = None
+        self.smoothing = CarrierSmoothing(self.config.smoothing_window)
 
     # ------------------------------------------------------------------ helpers
     def _weights(self, m: int, ref: int) -> tuple[np.ndarray, np.ndarray]:
@@ -589,6 +618,7 @@ class RelativeGnssSolver:
 
         # Cycle slips and velocity from time-differenced carrier phase.
         velocity, velocity_cov, slipped = _NAN3, _NAN33, []
+        continuous = np.zeros(m, dtype=bool)  # carrier checked continuous since last epoch
         if previous is not None:
             both = np.array([int(p) in previous["sd_phase"] for p in others])
             if both.sum() >= 4:
@@ -617,6 +647,8 @@ class RelativeGnssSolver:
                 else:
                     slipped = [int(others[rows[i]]) for i in flagged]
                     amb.reset(slipped)
+                    continuous[keep] = True
+                    continuous[[lookup[p] for p in slipped]] = False
                     velocity, velocity_cov = delta / dt, cov / dt**2
                     if slipped:
                         messages.append(f"cycle slips on PRN {slipped}: re-initialised")
@@ -660,6 +692,7 @@ class RelativeGnssSolver:
                 amb = AmbiguityNormals(int(prns[ref]))
                 amb.add(others)
                 self.ambiguities = amb
+                continuous[:] = False  # perhaps an undetected slip
                 messages.append("fixed solution failed its residual test: re-initialised")
         if status == "code" and amb.epochs > 0:
             a_hat, q_hat = amb.float_solution(np.arange(len(amb.prns)), conditional=False)
@@ -668,6 +701,16 @@ class RelativeGnssSolver:
             gain = nbb_inv @ ne["N_ba"]
             status, position = "float", b0 + nbb_inv @ ne["n_b"] - gain @ a_hat
             covariance = nbb_inv + gain @ q_hat @ gain.T
+
+        # Carrier-smoothed code (Hatch filter of single differences) and its solution.
+        smoothed, variance, smoothed_epochs = self.smoothing.update(
+            t, prns, sd_code, sd_phase, continuous, 2.0 * cfg.code_sigma**2,
+            2.0 * cfg.phase_sigma**2,
+        )  # fmt: skip
+        b_smooth, c_smooth = self._code_solution(
+            sat, vel, ref, base, smoothed, b_code,
+            double_difference_covariance(variance, np.zeros(m), ref),
+        )  # fmt: skip
 
         # Geometry at the epoch's estimate, for the next epoch's time differences.
         geometry = geo + jacobian @ (position - b0)
@@ -687,15 +730,18 @@ class RelativeGnssSolver:
             reference=int(prns[ref]),
             position=position,
             covariance=covariance,
-            code_position=b_code,
-            code_covariance=c_code,
+            code_position=b_smooth,
+            code_covariance=c_smooth,
             velocity=velocity,
             velocity_covariance=velocity_cov,
+            snapshot_position=b_code,
+            snapshot_covariance=c_code,
             fixed=len(fixed_map),
             ratio=ratio,
             success_rate=success,
             slips=tuple(slipped),
             ambiguities=fixed_map,
+            smoothing=dict(zip(prns.tolist(), smoothed_epochs.tolist(), strict=True)),
             message="; ".join(messages),
         )
 

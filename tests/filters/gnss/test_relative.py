@@ -89,6 +89,24 @@ def test_leo_formation_fixes_within_a_minute(formation_runs):
     assert np.all(pooled("velocity_errors") < 0.03)  # m/s
 
 
+def test_carrier_smoothed_code_is_unbiased_and_consistent(formation_runs):
+    runs = len(formation_runs)
+    late = lambda key: np.concatenate(  # noqa: E731
+        [getattr(r, key)[r.times >= 30.0] for r in formation_runs])  # fmt: skip
+    err, std, raw = late("smoothed_errors"), late("smoothed_std"), late("code_errors")
+    # Unbiased: the pooled mean is within 3 standard errors, counting each run as one sample
+    # (its errors are correlated over the smoothing window).
+    assert np.all(np.abs(err.mean(axis=0)) < 3.0 * np.sqrt(np.mean(std**2, axis=0) / runs))
+    # The covariance model holds: normalised errors of unit RMS (loosely: few independent
+    # samples), and the smoothing pays: 30 s and more of averaging beat the snapshot ≥ 3×.
+    assert 0.4 < np.sqrt(np.mean((err / std) ** 2)) < 2.0
+    assert np.all(np.sqrt(np.mean(err**2, axis=0)) < np.sqrt(np.mean(raw**2, axis=0)) / 3.0)
+    # The predicted spread shrinks with the window: σ/√n for the channels tracked throughout.
+    early = np.concatenate([r.smoothed_std[9] for r in formation_runs])
+    final = np.concatenate([r.smoothed_std[-1] for r in formation_runs])
+    assert np.all(final < early / 2.0)
+
+
 def test_fewer_than_five_common_satellites_means_no_fix_then_refix(almanac):
     blocked = ReceiverModel(obstructions=((45.0, 60.0, math.radians(75.0)),))
     run = simulate_formation(FormationScenario(almanac, duration=110.0, receiver=blocked), 1)
@@ -123,6 +141,10 @@ def test_cycle_slip_is_detected_and_the_ambiguity_refixed(almanac, formation_run
     # Re-initialised and fixed again (the others pin the baseline), to the slipped integer.
     before, after = run.fixed_ambiguities[k - 1], run.fixed_ambiguities[k]
     assert after[prn] - before[prn] == cycles
+    # Its carrier smoothing restarts, the others carry on, and the slip does not leak in.
+    assert run.smoothing[k][prn] == 1
+    assert all(n == run.smoothing[k - 1][p] + 1 for p, n in run.smoothing[k].items() if p != prn)
+    assert np.all(np.abs(run.smoothed_errors[k:]) < 4.0 * run.smoothed_std[k:])
     assert run.status[-1] == "fixed" and not run.wrong_fix
 
 
@@ -134,6 +156,7 @@ def test_slip_on_the_reference_reinitialises_everything(almanac, formation_runs)
     run = simulate_formation(scenario, 3)
     assert {p for t, p in run.detected_slips if t == 50.0} >= {ref}
     assert run.fixed_ambiguities[k] == {} and run.status[-1] == "fixed" and not run.wrong_fix
+    assert set(run.smoothing[k].values()) == {1}  # every channel's smoothing restarts
 
 
 def test_formation_scenario_checks(almanac):
