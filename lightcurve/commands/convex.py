@@ -24,7 +24,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from lightcurve import io
@@ -122,6 +121,7 @@ def _settings(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
     from lightcurve.convex.fit import SCAN_SETTINGS, refine
+    from lightcurve.convex.plots import plot_fit
     from lightcurve.spin import SpinState
 
     if args.period is None and args.period_range is None:
@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
         ),
         args.out / "fit.csv",
     )
-    _plot_fit(data, best.model, args.out / "fit.png")
+    plot_fit(data, best.model, args.out / "fit.png")
     summary = {
         "files": [str(p) for p in args.files],
         "frame": "ecliptic J2000 (DAMIT files) or the files' inertial frame",
@@ -231,42 +231,10 @@ def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
     return kept
 
 
-def _plot_fit(data, model: np.ndarray, path: Path, panels: int = 6) -> None:
-    """Observed and model brightness of the longest light curves, against hours in the night."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from lightcurve.atomic import atomic_path
-
-    counts = np.bincount(data.curve, minlength=data.n_curves)
-    # The longest curves; ties by curve order (an unstable sort would leave the choice
-    # among equally long curves to the sorting kernel of the processor).
-    chosen = np.sort(np.argsort(-counts, kind="stable")[:panels])
-    columns = min(3, len(chosen))
-    rows = math.ceil(len(chosen) / columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4 * columns, 2.8 * rows), squeeze=False)
-    for ax, label in zip(axes.flat, chosen, strict=False):
-        rows_ = data.curve == label
-        hours = (data.mjd[rows_] - data.mjd[rows_].min()) * 24.0
-        ax.errorbar(hours, data.brightness[rows_], data.sigma[rows_], fmt=".", ms=3, lw=0.5)
-        ax.plot(hours, model[rows_], "-", color="C3", lw=1.0)
-        ax.set_title(f"curve {label}, MJD {data.mjd[rows_].min():.1f}", fontsize=9)
-        ax.set_xlabel("hours")
-    for ax in list(axes.flat)[len(chosen) :]:
-        ax.set_visible(False)
-    axes[0, 0].set_ylabel("relative brightness")
-    fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png", dpi=90)
-    plt.close(fig)
-
-
 def _write_shape(solution, args: argparse.Namespace) -> None:
     from lightcurve.convex.minkowski import minkowski_polyhedron
+    from lightcurve.convex.plots import plot_shape
     from shapes import FacetModel, write_obj
-    from shapes.preview import render_preview
 
     vertices, faces = minkowski_polyhedron(
         solution.normals, solution.areas, dark_facet=args.dark_facet
@@ -278,4 +246,4 @@ def _write_shape(solution, args: argparse.Namespace) -> None:
         provenance={"source": "lightcurve convex", "files": [str(p) for p in args.files]},
     )
     write_obj(model, args.out / "shape.obj")
-    render_preview(model, args.out / "shape.png", view=np.array([1.0, -1.0, 0.6]))
+    plot_shape(vertices, faces, args.out / "shape.png", title=model.name)
