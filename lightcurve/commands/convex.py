@@ -12,8 +12,8 @@ on stderr (--progress, or -v for a log line per batch).
 Writes OUT/summary.json (``solutions``: best first, each with lambda_deg, beta_deg,
 period_h, rms, chi2, uncertainties), OUT/shape.obj (the best convex polyhedron, Minkowski
 reconstruction, volume 1 m³ — `lightcurve shapes add NAME OUT/shape.obj` accepts it),
-OUT/shape.png, OUT/fit.csv and OUT/fit.png (observed and model brightness) and, after a
-scan, OUT/scan.csv.
+OUT/fit.csv (observed and model brightness) and, after a scan, OUT/scan.csv; with --plots
+also OUT/shape.png and OUT/fit.png.
 """
 
 from __future__ import annotations
@@ -87,6 +87,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dark-facet", action="store_true", help="close the shape with the dark facet"
     )
     parser.add_argument("--refine", type=int, default=5, help="scan minima refined (5)")
+    parser.add_argument(
+        "--plots",
+        action="store_true",
+        help="also draw OUT/shape.png and OUT/fit.png (matplotlib: about 1 s more)",
+    )
     parser.add_argument("--out", type=Path, required=True, help="output folder")
 
 
@@ -121,7 +126,6 @@ def _settings(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
     from lightcurve.convex.fit import SCAN_SETTINGS, refine
-    from lightcurve.convex.plots import plot_fit
     from lightcurve.spin import SpinState
 
     if args.period is None and args.period_range is None:
@@ -173,7 +177,10 @@ def run(args: argparse.Namespace) -> int:
         ),
         args.out / "fit.csv",
     )
-    plot_fit(data, best.model, args.out / "fit.png")
+    if args.plots:
+        from lightcurve.convex.plots import plot_fit
+
+        plot_fit(data, best.model, args.out / "fit.png")
     summary = {
         "files": [str(p) for p in args.files],
         "frame": "ecliptic J2000 (DAMIT files) or the files' inertial frame",
@@ -233,7 +240,6 @@ def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
 
 def _write_shape(solution, args: argparse.Namespace) -> None:
     from lightcurve.convex.minkowski import minkowski_polyhedron
-    from lightcurve.convex.plots import plot_shape
     from shapes import FacetModel, write_obj
 
     vertices, faces = minkowski_polyhedron(
@@ -246,4 +252,7 @@ def _write_shape(solution, args: argparse.Namespace) -> None:
         provenance={"source": "lightcurve convex", "files": [str(p) for p in args.files]},
     )
     write_obj(model, args.out / "shape.obj")
-    plot_shape(vertices, faces, args.out / "shape.png", title=model.name)
+    if args.plots:
+        from lightcurve.convex.plots import plot_shape
+
+        plot_shape(vertices, faces, args.out / "shape.png", title=model.name)
