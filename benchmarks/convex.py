@@ -10,7 +10,9 @@ Prints JSON with:
   error against 5.761985 h, rms, runtime (one torch thread: the C reference takes about
   3 s on one core).
 * ``ariadne_50_iterations``: the same fit stopped at 50 iterations like DAMIT's test run.
-* ``minkowski``: the polyhedron reconstruction of the Ariadne solution.
+* ``minkowski``: the polyhedron reconstruction of the Ariadne solution: runtime and the
+  largest difference between its facet areas (over their sum) and the closed Gaussian
+  image's.
 * ``ariadne_scan``: the period scan over 5.70–5.82 h (step ``coefficient · P²/2T``, pole
   starts spread over the sphere, light scan model on ≤ 20 points per light curve), the
   deepest minima refined with the full model; runtime and where the global minimum is.
@@ -33,7 +35,8 @@ Prints JSON with:
   and settings, run side by side (best of ``--repeat`` runs each): ``convexinv`` as a
   process, ``lightcurve convex`` as a process (imports, fit, shape, plots), the library fit
   in a fresh process (imports, reading, fit) and in this process; the solution against the
-  torch engine's in the same run (same optimiser, the torch model). And DAMIT's
+  torch engine's in the same run (same optimiser, the torch model); the command is timed
+  as run by default (no figures) and with ``--plots``. And DAMIT's
   ``period_scan`` on its example range 5.7615–5.7625 h against ours on the same range. The C
   sources are DAMIT's distribution (``convexinv`` folder with its ``Makefile``): give its
   folder with ``--damit DIR`` or ``DAMIT_CONVEX_DIR``; it is built in a temporary folder
@@ -76,7 +79,12 @@ from filters.attitude import attitude_matrix
 from lightcurve import io
 from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
 from lightcurve.convex.fit import SCAN_SETTINGS, EarlyRejection, period_profile, refine
-from lightcurve.convex.minkowski import equivalent_ellipsoid, minkowski_polyhedron
+from lightcurve.convex.minkowski import (
+    close_gaussian_image,
+    equivalent_ellipsoid,
+    minkowski_polyhedron,
+    polytope,
+)
 from lightcurve.ephemeris import (
     ITOKAWA_HG,
     ITOKAWA_ORBIT,
@@ -373,6 +381,7 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     # reported with the wall times: on a shared machine they depend far less on the load.
     programs = {
         "command": (command, None),
+        "command_with_plots": ([*command, "--plots"], None),
         "library_process": ([sys.executable, "-c", library], None),
     }
     if build is not None:
@@ -392,7 +401,7 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     if build is not None:
         for kind in ("seconds", "cpu_seconds"):
             c = timings[f"convexinv_{kind}"]
-            for name in ("library_process", "command", "fit_in_process"):
+            for name in ("library_process", "command", "command_with_plots", "fit_in_process"):
                 timings[f"ratio_{name}_to_convexinv_{kind}"] = timings[f"{name}_{kind}"] / c
     timings["baseline_command_seconds"] = BASELINE_SECONDS["ariadne_fit_command"]
     timings["ratio_command_to_baseline"] = (
@@ -581,10 +590,15 @@ def main() -> None:
         out["ariadne_fit"], best = ariadne_fit(data, 100, 1e-7)
         out["ariadne_50_iterations"], _ = ariadne_fit(data, 50, 1e-7)
         (vertices, faces), seconds = _timed(minkowski_polyhedron, best.normals, best.areas)
+        normals, target = close_gaussian_image(best.normals, best.areas)
+        areas = polytope(normals, (normals @ vertices.T).max(axis=1))[2]
         out["minkowski"] = {
             "facets_in": len(best.areas),
             "triangles_out": len(faces),
             "seconds": seconds,
+            "largest_area_mismatch": float(
+                np.abs(areas / areas.sum() - target / target.sum()).max()
+            ),
             "axes": equivalent_ellipsoid((vertices, faces)).tolist(),
         }
     if "profile" in parts:
