@@ -70,7 +70,7 @@ def close_gaussian_image(
         return np.vstack([normals, -v / size]), np.append(areas, size)
     closed = areas
     for _ in range(len(areas)):
-        if np.linalg.norm(v) <= 1e-12 * closed.sum():
+        if closed.sum() > 0 and np.linalg.norm(v) <= 1e-12 * closed.sum():
             return normals, closed
         weights = np.where(closed > 0, areas, 0.0) ** 2
         try:

@@ -138,6 +138,10 @@ def test_minkowski_polyhedron_has_the_requested_facet_areas():
     areas = polytope(normals, support)[2]
     assert np.abs(areas / areas.sum() - closed).max() < 1e-8
     assert trimesh.Trimesh(vertices, faces).is_watertight
+    # Normals all in one hemisphere: no non-negative areas close the image.
+    upper = normals[:, 2] > 0.1
+    with pytest.raises(ValueError, match="dark facet"):
+        close_gaussian_image(normals[upper], target[upper])
 
 
 @pytest.fixture(scope="module")
