@@ -53,6 +53,7 @@ measured on this machine type (``BASELINE_SECONDS``): an in-run baseline of the 
 not available any more; the C references are measured in the same run.
 
     python -m benchmarks.convex [--parts ariadne,profile,itokawa,scan,reference,rejection,simulated]
+        (reference_fit: the reference part without the period scans)
         [--poles 4] [--threads 2] [--repeat 3] [--damit DIR]
 """
 
@@ -333,8 +334,11 @@ def _damit_build(source: Path | None) -> Path | None:
     return build
 
 
-def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -> dict:
-    """Our fit and scan against DAMIT's C programs, side by side (see the module docstring)."""
+def reference(
+    data: Photometry, damit: Path | None, repeat: int, threads: int, scan: bool = True
+) -> dict:
+    """Our fit and (with ``scan``) scan against DAMIT's C programs, side by side (see the
+    module docstring)."""
     build = _damit_build(damit)
     out: dict = {"load_average": os.getloadavg()}
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
@@ -408,6 +412,8 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
         timings["command_seconds"] / BASELINE_SECONDS["ariadne_fit_command"]
     )
     out["fit"] = timings
+    if not scan:
+        return out
     # DAMIT's period_scan on its example range against ours on the same range.
     lines = (build / "input_period_scan").read_text().splitlines() if build else []
     low, high, coefficient = (
@@ -559,8 +565,8 @@ def main() -> None:
     parser.add_argument(
         "--parts",
         default="ariadne,profile,itokawa,scan,reference,rejection,simulated",
-        help="comma-separated parts: ariadne, profile, itokawa, scan, reference, rejection, "
-        "simulated (default all)",
+        help="comma-separated parts: ariadne, profile, itokawa, scan, reference (reference_fit: "
+        "without the period scans), rejection, simulated (default all)",
     )
     parser.add_argument("--repeat", type=int, default=3, help="runs of each timed process")
     parser.add_argument(
@@ -608,8 +614,10 @@ def main() -> None:
         out["itokawa"] = itokawa(6)
     if "scan" in parts:
         out["ariadne_scan"] = ariadne_scan(data, args.poles, args.coefficient, 10)
-    if "reference" in parts:
-        out["reference"] = reference(data, args.damit, args.repeat, args.threads)
+    if "reference" in parts or "reference_fit" in parts:
+        out["reference"] = reference(
+            data, args.damit, args.repeat, args.threads, scan="reference" in parts
+        )
     if "rejection" in parts:
         out["rejection"] = rejection_study(data, (5.755, 5.77), args.poles, args.coefficient)
     if "simulated" in parts:
