@@ -10,7 +10,9 @@ Prints JSON with:
   error against 5.761985 h, rms, runtime (one torch thread: the C reference takes about
   3 s on one core).
 * ``ariadne_50_iterations``: the same fit stopped at 50 iterations like DAMIT's test run.
-* ``minkowski``: the polyhedron reconstruction of the Ariadne solution.
+* ``minkowski``: the polyhedron reconstruction of the Ariadne solution: runtime and the
+  largest difference between its facet areas (over their sum) and the closed Gaussian
+  image's.
 * ``ariadne_scan``: the period scan over 5.70–5.82 h (step ``coefficient · P²/2T``, pole
   starts spread over the sphere, light scan model on ≤ 20 points per light curve), the
   deepest minima refined with the full model; runtime and where the global minimum is.
@@ -33,7 +35,8 @@ Prints JSON with:
   and settings, run side by side (best of ``--repeat`` runs each): ``convexinv`` as a
   process, ``lightcurve convex`` as a process (imports, fit, shape, plots), the library fit
   in a fresh process (imports, reading, fit) and in this process; the solution against the
-  torch engine's in the same run (same optimiser, the torch model). And DAMIT's
+  torch engine's in the same run (same optimiser, the torch model); the command is timed
+  as run by default (no figures) and with ``--plots``. And DAMIT's
   ``period_scan`` on its example range 5.7615–5.7625 h against ours on the same range. The C
   sources are DAMIT's distribution (``convexinv`` folder with its ``Makefile``): give its
   folder with ``--damit DIR`` or ``DAMIT_CONVEX_DIR``; it is built in a temporary folder
@@ -50,6 +53,7 @@ measured on this machine type (``BASELINE_SECONDS``): an in-run baseline of the 
 not available any more; the C references are measured in the same run.
 
     python -m benchmarks.convex [--parts ariadne,profile,itokawa,scan,reference,rejection,simulated]
+        (reference_fit: the reference part without the period scans)
         [--poles 4] [--threads 2] [--repeat 3] [--damit DIR]
 """
 
@@ -76,7 +80,12 @@ from filters.attitude import attitude_matrix
 from lightcurve import io
 from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
 from lightcurve.convex.fit import SCAN_SETTINGS, EarlyRejection, period_profile, refine
-from lightcurve.convex.minkowski import equivalent_ellipsoid, minkowski_polyhedron
+from lightcurve.convex.minkowski import (
+    close_gaussian_image,
+    equivalent_ellipsoid,
+    minkowski_polyhedron,
+    polytope,
+)
 from lightcurve.ephemeris import (
     ITOKAWA_HG,
     ITOKAWA_ORBIT,
@@ -325,8 +334,11 @@ def _damit_build(source: Path | None) -> Path | None:
     return build
 
 
-def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -> dict:
-    """Our fit and scan against DAMIT's C programs, side by side (see the module docstring)."""
+def reference(
+    data: Photometry, damit: Path | None, repeat: int, threads: int, scan: bool = True
+) -> dict:
+    """Our fit and (with ``scan``) scan against DAMIT's C programs, side by side (see the
+    module docstring)."""
     build = _damit_build(damit)
     out: dict = {"load_average": os.getloadavg()}
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
@@ -373,6 +385,7 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     # reported with the wall times: on a shared machine they depend far less on the load.
     programs = {
         "command": (command, None),
+        "command_with_plots": ([*command, "--plots"], None),
         "library_process": ([sys.executable, "-c", library], None),
     }
     if build is not None:
@@ -392,13 +405,15 @@ def reference(data: Photometry, damit: Path | None, repeat: int, threads: int) -
     if build is not None:
         for kind in ("seconds", "cpu_seconds"):
             c = timings[f"convexinv_{kind}"]
-            for name in ("library_process", "command", "fit_in_process"):
+            for name in ("library_process", "command", "command_with_plots", "fit_in_process"):
                 timings[f"ratio_{name}_to_convexinv_{kind}"] = timings[f"{name}_{kind}"] / c
     timings["baseline_command_seconds"] = BASELINE_SECONDS["ariadne_fit_command"]
     timings["ratio_command_to_baseline"] = (
         timings["command_seconds"] / BASELINE_SECONDS["ariadne_fit_command"]
     )
     out["fit"] = timings
+    if not scan:
+        return out
     # DAMIT's period_scan on its example range against ours on the same range.
     lines = (build / "input_period_scan").read_text().splitlines() if build else []
     low, high, coefficient = (
@@ -550,8 +565,8 @@ def main() -> None:
     parser.add_argument(
         "--parts",
         default="ariadne,profile,itokawa,scan,reference,rejection,simulated",
-        help="comma-separated parts: ariadne, profile, itokawa, scan, reference, rejection, "
-        "simulated (default all)",
+        help="comma-separated parts: ariadne, profile, itokawa, scan, reference (reference_fit: "
+        "without the period scans), rejection, simulated (default all)",
     )
     parser.add_argument("--repeat", type=int, default=3, help="runs of each timed process")
     parser.add_argument(
@@ -581,10 +596,15 @@ def main() -> None:
         out["ariadne_fit"], best = ariadne_fit(data, 100, 1e-7)
         out["ariadne_50_iterations"], _ = ariadne_fit(data, 50, 1e-7)
         (vertices, faces), seconds = _timed(minkowski_polyhedron, best.normals, best.areas)
+        normals, target = close_gaussian_image(best.normals, best.areas)
+        areas = polytope(normals, (normals @ vertices.T).max(axis=1))[2]
         out["minkowski"] = {
             "facets_in": len(best.areas),
             "triangles_out": len(faces),
             "seconds": seconds,
+            "largest_area_mismatch": float(
+                np.abs(areas / areas.sum() - target / target.sum()).max()
+            ),
             "axes": equivalent_ellipsoid((vertices, faces)).tolist(),
         }
     if "profile" in parts:
@@ -594,8 +614,10 @@ def main() -> None:
         out["itokawa"] = itokawa(6)
     if "scan" in parts:
         out["ariadne_scan"] = ariadne_scan(data, args.poles, args.coefficient, 10)
-    if "reference" in parts:
-        out["reference"] = reference(data, args.damit, args.repeat, args.threads)
+    if "reference" in parts or "reference_fit" in parts:
+        out["reference"] = reference(
+            data, args.damit, args.repeat, args.threads, scan="reference" in parts
+        )
     if "rejection" in parts:
         out["rejection"] = rejection_study(data, (5.755, 5.77), args.poles, args.coefficient)
     if "simulated" in parts:

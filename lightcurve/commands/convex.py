@@ -12,8 +12,8 @@ on stderr (--progress, or -v for a log line per batch).
 Writes OUT/summary.json (``solutions``: best first, each with lambda_deg, beta_deg,
 period_h, rms, chi2, uncertainties), OUT/shape.obj (the best convex polyhedron, Minkowski
 reconstruction, volume 1 m³ — `lightcurve shapes add NAME OUT/shape.obj` accepts it),
-OUT/shape.png, OUT/fit.csv and OUT/fit.png (observed and model brightness) and, after a
-scan, OUT/scan.csv.
+OUT/fit.csv (observed and model brightness) and, after a scan, OUT/scan.csv; with --plots
+also OUT/shape.png and OUT/fit.png.
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from lightcurve import io
@@ -88,6 +87,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dark-facet", action="store_true", help="close the shape with the dark facet"
     )
     parser.add_argument("--refine", type=int, default=5, help="scan minima refined (5)")
+    parser.add_argument(
+        "--plots",
+        action="store_true",
+        help="also draw OUT/shape.png and OUT/fit.png (matplotlib: about 1 s more)",
+    )
     parser.add_argument("--out", type=Path, required=True, help="output folder")
 
 
@@ -173,7 +177,10 @@ def run(args: argparse.Namespace) -> int:
         ),
         args.out / "fit.csv",
     )
-    _plot_fit(data, best.model, args.out / "fit.png")
+    if args.plots:
+        from lightcurve.convex.plots import plot_fit
+
+        plot_fit(data, best.model, args.out / "fit.png")
     summary = {
         "files": [str(p) for p in args.files],
         "frame": "ecliptic J2000 (DAMIT files) or the files' inertial frame",
@@ -231,42 +238,9 @@ def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
     return kept
 
 
-def _plot_fit(data, model: np.ndarray, path: Path, panels: int = 6) -> None:
-    """Observed and model brightness of the longest light curves, against hours in the night."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from lightcurve.atomic import atomic_path
-
-    counts = np.bincount(data.curve, minlength=data.n_curves)
-    # The longest curves; ties by curve order (an unstable sort would leave the choice
-    # among equally long curves to the sorting kernel of the processor).
-    chosen = np.sort(np.argsort(-counts, kind="stable")[:panels])
-    columns = min(3, len(chosen))
-    rows = math.ceil(len(chosen) / columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4 * columns, 2.8 * rows), squeeze=False)
-    for ax, label in zip(axes.flat, chosen, strict=False):
-        rows_ = data.curve == label
-        hours = (data.mjd[rows_] - data.mjd[rows_].min()) * 24.0
-        ax.errorbar(hours, data.brightness[rows_], data.sigma[rows_], fmt=".", ms=3, lw=0.5)
-        ax.plot(hours, model[rows_], "-", color="C3", lw=1.0)
-        ax.set_title(f"curve {label}, MJD {data.mjd[rows_].min():.1f}", fontsize=9)
-        ax.set_xlabel("hours")
-    for ax in list(axes.flat)[len(chosen) :]:
-        ax.set_visible(False)
-    axes[0, 0].set_ylabel("relative brightness")
-    fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png", dpi=90)
-    plt.close(fig)
-
-
 def _write_shape(solution, args: argparse.Namespace) -> None:
     from lightcurve.convex.minkowski import minkowski_polyhedron
     from shapes import FacetModel, write_obj
-    from shapes.preview import render_preview
 
     vertices, faces = minkowski_polyhedron(
         solution.normals, solution.areas, dark_facet=args.dark_facet
@@ -278,4 +252,7 @@ def _write_shape(solution, args: argparse.Namespace) -> None:
         provenance={"source": "lightcurve convex", "files": [str(p) for p in args.files]},
     )
     write_obj(model, args.out / "shape.obj")
-    render_preview(model, args.out / "shape.png", view=np.array([1.0, -1.0, 0.6]))
+    if args.plots:
+        from lightcurve.convex.plots import plot_shape
+
+        plot_shape(vertices, faces, args.out / "shape.png", title=model.name)

@@ -80,7 +80,7 @@ def test_glint_command(flashes, tmp_path, capsys):
 def test_convex_command_writes_solutions_shape_and_fit(ariadne_subset, tmp_path, capsys):
     out = tmp_path / "convex"
     args = ["convex", str(ariadne_subset), "--period", "5.762", "--poles", "2"]
-    args += ["--rows", "3", "--degree", "3", "--iterations", "8", "--out", str(out)]
+    args += ["--rows", "3", "--degree", "3", "--iterations", "8", "--plots", "--out", str(out)]
     assert main(args) == 0
     summary = json.loads((out / "summary.json").read_text())
     solutions = summary["solutions"]
@@ -108,6 +108,7 @@ def test_convex_period_scan(ariadne_subset, tmp_path):
     assert summary["scan"]["pole_starts"] == 2
     scan = pd.read_csv(out / "scan.csv")
     assert len(scan) == summary["scan"]["periods"] and scan["period_h"].is_monotonic_increasing
+    assert not (out / "shape.png").exists() and not (out / "fit.png").exists()  # no --plots
 
 
 def test_user_errors_are_one_line(ariadne_subset, tmp_path, capsys):

@@ -27,6 +27,8 @@ from lightcurve.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
     minkowski_polyhedron,
+    polytope,
+    volume_hessian,
 )
 from lightcurve.convex.model import ConvexModel
 from lightcurve.ephemeris import (
@@ -103,6 +105,43 @@ def test_minkowski_reconstructs_a_box_and_an_ellipsoid():
     for dark in (False, True):
         n, a = close_gaussian_image(sphere.normals, open_areas, dark)
         assert np.linalg.norm(a @ n) < 1e-9 * a.sum()
+
+
+def test_volume_hessian_matches_finite_differences_and_euler():
+    """∂F_i/∂h_j from the edges against central differences of the facet areas, and
+    H h = 2 F (the volume is homogeneous of degree 3)."""
+    sphere = GaussianSphere(4, 3, 3)
+    support = 1.0 + 0.3 * np.random.default_rng(2).random(len(sphere.normals))
+    areas, hessian = volume_hessian(sphere.normals, support)
+    np.testing.assert_allclose(hessian @ support, 2 * areas, atol=1e-12)
+    np.testing.assert_allclose(hessian, hessian.T, atol=1e-12)
+    step = 1e-6
+    for j in (0, 17, 40):
+        up, down = support.copy(), support.copy()
+        up[j] += step
+        down[j] -= step
+        numeric = (polytope(sphere.normals, up)[2] - polytope(sphere.normals, down)[2]) / (2 * step)
+        np.testing.assert_allclose(hessian[:, j], numeric, atol=1e-7 * np.abs(numeric).max())
+
+
+def test_minkowski_polyhedron_has_the_requested_facet_areas():
+    """A rough Gaussian image (some areas clipped to 0 when it is closed): the facet areas,
+    over their sum, equal the closed image's to the tolerance."""
+    sphere = GaussianSphere(6, 4, 4)
+    rng = np.random.default_rng(5)
+    coefficients = np.r_[0.0, rng.normal(0, 1.5, sphere.n_coefficients - 1)]
+    target = sphere.areas * np.exp(sphere.basis @ coefficients)
+    normals, closed = close_gaussian_image(sphere.normals, target)
+    closed /= closed.sum()
+    vertices, faces = minkowski_polyhedron(sphere.normals, target, tol=1e-10)
+    support = (normals @ vertices.T).max(axis=1)
+    areas = polytope(normals, support)[2]
+    assert np.abs(areas / areas.sum() - closed).max() < 1e-8
+    assert trimesh.Trimesh(vertices, faces).is_watertight
+    # Normals all in one hemisphere: no non-negative areas close the image.
+    upper = normals[:, 2] > 0.1
+    with pytest.raises(ValueError, match="dark facet"):
+        close_gaussian_image(normals[upper], target[upper])
 
 
 @pytest.fixture(scope="module")
