@@ -22,15 +22,14 @@ from filters.global_search import (
     BatchProblem,
     Candidates,
     Prior,
-    _best_distinct,
-    _replenish,
-    _with_twins,
     distinct_states,
     global_search,
     refine,
     residual_jacobian,
     uniform_rates,
 )
+from filters.global_search.refinement import _with_twins
+from filters.global_search.selection import _best_distinct, _replenish
 from filters.symmetry import SymmetryGroup
 
 INERTIA = np.diag([1.0, 1.7, 2.2])
