@@ -148,13 +148,13 @@ class BatchProblem:
         """Unknowns per candidate: 6, or 8 with the inertia."""
         return 8 if self.estimate_inertia else 6
 
-    def window(self, duration: float, max_epochs: int) -> np.ndarray:
-        """Indices of at most ``max_epochs`` measurements, evenly spread over the first
+    def window(self, duration: float, count: int) -> np.ndarray:
+        """Indices of at most ``count`` measurements, evenly spread over the first
         ``duration`` seconds."""
         inside = np.flatnonzero(self.times <= self.times[0] + duration)
-        if len(inside) <= max_epochs:
+        if len(inside) <= count:
             return inside
-        return inside[np.round(np.linspace(0, len(inside) - 1, max_epochs)).astype(int)]
+        return inside[np.round(np.linspace(0, len(inside) - 1, count)).astype(int)]
 
     def trajectory(
         self,

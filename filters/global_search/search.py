@@ -46,7 +46,7 @@ class _Schedule:
     screen_duration: float
     windows: tuple[float, ...]
     keep: tuple[int, ...]
-    max_epochs: int
+    min_epochs: int
     max_rotation: float
     iterations: int
     tolerance: float
@@ -101,7 +101,7 @@ def global_search(
     screen_duration: float = 30.0,
     windows: Sequence[float] = (30.0, 90.0, 300.0),
     keep: Sequence[int] = (256, 24, 6),
-    max_epochs: int = 90,
+    min_epochs: int = 90,
     max_rotation: float = math.radians(20.0),
     iterations: int = 15,
     tolerance: float = 0.0,
@@ -140,12 +140,12 @@ def global_search(
         Growing refinement windows (s); the last one is the window of the returned χ².
     keep : sequence of int
         Candidates refined on each window (the best of the previous stage).
-    max_epochs : int
+    min_epochs : int
         Measurements used per window (spread evenly over it), unless ``max_rotation``
         asks for more.
     max_rotation : float
         Longest rotation (rad) at ``omega_max`` between a window's measurements: a long
-        window sampled by ``max_epochs`` measurements aliases a fast rotator's light curve
+        window sampled by ``min_epochs`` measurements aliases a fast rotator's light curve
         (at 4°/s, 90 measurements over 1200 s are 53° apart, and states that fit them
         at χ²/E = 0.86 fit the whole arc at 1.29 while the truth fits it at 0.95), so it
         gets ``⌈duration · omega_max / max_rotation⌉`` measurements instead.
@@ -206,7 +206,7 @@ def global_search(
         screen_duration=screen_duration,
         windows=tuple(windows),
         keep=tuple(keep),
-        max_epochs=max_epochs,
+        min_epochs=min_epochs,
         max_rotation=max_rotation,
         iterations=iterations,
         tolerance=tolerance,
@@ -321,7 +321,7 @@ def _search_round(
                 rng=rng,
             )
         rotation_epochs = math.ceil(duration * omega_max / schedule.max_rotation)
-        epochs = problem.window(duration, max(schedule.max_epochs, rotation_epochs))
+        epochs = problem.window(duration, max(schedule.min_epochs, rotation_epochs))
         candidates = refine(
             problem, candidates, epochs, iterations=schedule.iterations, prior=fit_prior
         )

@@ -202,7 +202,7 @@ def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
     max_rotation_deg, expected
 ):
     # 120 s at up to 4°/s with at most 20° between samples: ⌈120 · 4 / 20⌉ = 24 epochs,
-    # more than max_epochs = 10 (which alone would put 48° of rotation between samples).
+    # more than min_epochs = 10 (which alone would put 48° of rotation between samples).
     problem = _problem(random_quaternion((), 3), np.radians([1.0, 0.5, -1.0]), seconds=120)
     result = global_search(
         problem,
@@ -212,7 +212,7 @@ def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
         screen_duration=16.0,
         windows=(16.0, 120.0),
         keep=(4, 2),
-        max_epochs=10,
+        min_epochs=10,
         max_rotation=math.radians(max_rotation_deg),
         iterations=2,
     )
