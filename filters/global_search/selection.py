@@ -78,7 +78,7 @@ def _best_distinct(
     after dropping duplicates of better ones (:func:`distinct_states`).
 
     Refined candidates collapse onto few minima: on a 120 s window, 128 survivors measured
-    3 distinct states (run 17 of the box-wing UKF study, random seed 0), the best 24 of them
+    3 distinct states (on one run of the box-wing UKF study), the best 24 of them
     all copies of a wrong minimum 20° from the truth while the truth's minimum, χ² 66.4
     against 63.6, ranked 25th and was lost; on the 240 s window that follows, the truth's fit is
     82.5 and the wrong one's 120.7. Keeping distinct states carries every minimum on.
@@ -114,7 +114,7 @@ def _replenish(
     taken in turn best first.
 
     The refinement concentrates candidates in few minima (five distinct states out of 128
-    on a 120 s window in run 18 of the box-wing UKF study, random seed 0), and weakly
+    on a 120 s window on one run of the box-wing UKF study), and weakly
     observed rates leave a survivor several degrees from the minimum the longer windows
     favour without being in its basin. The slots that duplicates would have taken explore
     the survivors' uncertainty instead, at no extra cost per stage.

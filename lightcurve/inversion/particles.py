@@ -155,8 +155,8 @@ def _seed_particles(
     0.01°/s). The cap bounds the spread of the importance weights: a candidate the data
     barely constrain has a huge ``C_i`` and therefore a tiny mixture density, and the one
     of its particles that happened to fit then outweighed the whole cloud around the best
-    fit (box, particle-filter study, random seed 0, run 16: the search's best was 2.5°
-    from the truth, the PF ended 76° off; with the cap 1.8°). The log-weights
+    fit (on one run of the box's particle-filter study the search's best was 2.5° from
+    the truth, the PF ended 76° off; with the cap 1.8°). The log-weights
     ``log prior(x) − log q(x)`` (``q`` the mixture density) make the particles a sample of
     the prior, which the filter then updates with every measurement. The component each
     particle was drawn from is returned for mixture tracking.

@@ -28,11 +28,10 @@ def polish(ctx: Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.ndar
     their Laplace evidence.
 
     A few thousand particles in six or more dimensions leave a cluster's mean a few
-    degrees from the best fit and its spread is no covariance (Itokawa, 20 min at 1 Hz,
-    particle-filter study, random seed 0, run 1: the mean ended 5.0° from the truth with
-    NEES 86). And a
-    cluster's weight is its particles' likelihood, not its basin's: on the same scenario
-    (run 14) the truth's component, its particles a few degrees off, fell below 1 % to the
+    degrees from the best fit and its spread is no covariance (on one run of the
+    particle-filter study of Itokawa, 20 min at 1 Hz, the mean ended 5.0° from the truth
+    with NEES 86). And a cluster's weight is its particles' likelihood, not its basin's: on
+    another run of the same scenario the truth's component, its particles a few degrees off, fell below 1 % to the
     reciprocity twin that the whole arc fits worse. So every cluster's final state
     ``x = [q, ω(, k)]`` is refined by Levenberg–Marquardt on every measurement
     (:func:`filters.global_search.refine` with the states at the last epoch, earlier
