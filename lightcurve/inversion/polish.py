@@ -32,7 +32,8 @@ def polish(ctx: Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.ndar
     particle-filter study of Itokawa, 20 min at 1 Hz, the mean ended 5.0° from the truth
     with NEES 86). And a cluster's weight is its particles' likelihood, not its basin's: on
     another run of the same scenario the truth's component, its particles a few degrees
-    off, fell below 1 % to the reciprocity twin that the whole arc fits worse. So every cluster's final state
+    off, fell below 1 % to the reciprocity twin that the whole arc fits worse. So every
+    cluster's final state
     ``x = [q, ω(, k)]`` is refined by Levenberg–Marquardt on every measurement
     (:func:`filters.global_search.refine` with the states at the last epoch, earlier
     epochs reached backwards by the torque-free dynamics) under the search's weak rate
