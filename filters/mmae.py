@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import fields
 from typing import Any
@@ -58,7 +57,7 @@ from filters.attitude import (
     quaternion_multiply,
     quaternion_to_grp,
 )
-from filters.kalman import chi2_band
+from filters.consistency import NISWindow
 from filters.ukf import AttitudeUKF, Measurement, UpdateResult
 
 __all__ = ["MultipleModelBank"]
@@ -106,6 +105,7 @@ class MultipleModelBank:
         self,
         filters: Sequence[AttitudeUKF],
         names: Sequence[str],
+        *,
         log_prior: Sequence[Any] | None = None,
         floor: float = 1e-3,
         window: int = 60,
@@ -124,7 +124,6 @@ class MultipleModelBank:
         self.floor = float(floor)
         self.window = int(window)
         self.nis_cap = float(nis_cap)
-        self.bound = chi2_band(1, self.window, 1.0 - 2.0 * (1.0 - level))[1]
         if log_prior is None:
             log_prior = [np.zeros(len(f)) for f in filters]
         self._model = np.repeat(np.arange(len(filters)), [len(f) for f in filters])
@@ -139,8 +138,10 @@ class MultipleModelBank:
         self._log_w = joint - model_log[self._model]
         self.probabilities = self._floored(np.exp(model_log - np.max(model_log)))
         self.residual_factor = float(residual_factor)
-        self._nis: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
-        self._misfit: list[deque[float]] = [deque(maxlen=self.window) for _ in filters]
+        # Per model: the windowed NIS ν²/S and the windowed ν²/R of its heaviest hypothesis.
+        self._nis = [NISWindow(self.window, level, self.nis_cap) for _ in filters]
+        self._misfit = [NISWindow(self.window, level, self.nis_cap) for _ in filters]
+        self.bound = self._nis[0].bound
 
     def __len__(self) -> int:
         return len(self.members)
@@ -232,8 +233,8 @@ class MultipleModelBank:
         ):
             nis = float(res.nis[lead])
             if math.isfinite(nis):
-                window.append(min(nis, self.nis_cap))
-                misfit.append(min(float(res.innovation[lead]) ** 2 / r, self.nis_cap))
+                window.add(nis)
+                misfit.add(float(res.innovation[lead]) ** 2 / r)
         return results
 
     def evaluate(self, z: float, r: float, hx: Measurement, model: int) -> UpdateResult:
@@ -244,18 +245,18 @@ class MultipleModelBank:
     @property
     def windowed_nis(self) -> np.ndarray:
         """Mean NIS of each model over its window (NaN before any sample)."""
-        return np.array([np.mean(w) if w else math.nan for w in self._nis])
+        return np.array([w.mean for w in self._nis])
 
     @property
     def windowed_misfit(self) -> np.ndarray:
         """Mean ``ν²/R`` of each model over its window (NaN before any sample)."""
-        return np.array([np.mean(w) if w else math.nan for w in self._misfit])
+        return np.array([w.mean for w in self._misfit])
 
     @property
     def consistent(self) -> np.ndarray:
         """Models whose windowed mean NIS is within the bound and whose windowed mean
         ``ν²/R`` is within ``residual_factor`` times it (True until the window is full)."""
-        full = np.array([len(w) == self.window for w in self._nis])
+        full = np.array([w.full for w in self._nis])
         fits = (self.windowed_nis <= self.bound) & (
             self.windowed_misfit <= self.residual_factor * self.bound
         )

@@ -56,11 +56,8 @@ import torch
 
 from filters.attitude import (
     PrincipalInertia,
-    attitude_angle,
     propagate_torque_free,
-    quaternion_canonical,
     quaternion_conjugate,
-    quaternion_mean,
     quaternion_multiply,
     quaternion_normalize,
     quaternion_to_rotation_vector,
@@ -68,6 +65,8 @@ from filters.attitude import (
     rotation_vector_to_quaternion,
 )
 from filters.linalg import covariance_root
+from filters.particle_modes import Mode, greedy_clusters, heaviest_mode, weighted_modes
+from filters.resampling import systematic_resample
 
 __all__ = [
     "AttitudeParticleFilter",
@@ -80,39 +79,6 @@ __all__ = [
 ParticleMeasure = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 #: ``target(q, ω, k, shape) → (N,)`` log-density used by resample-move.
 MoveTarget = Callable[[torch.Tensor, torch.Tensor, Any, torch.Tensor], torch.Tensor]
-
-
-def systematic_resample(
-    weights: torch.Tensor, generator: torch.Generator, counts: torch.Tensor | None = None
-) -> torch.Tensor:
-    """Indices drawn by systematic resampling, one uniform offset per block.
-
-    Parameters
-    ----------
-    weights : (N,) tensor
-        Weights normalised within each block.
-    generator : torch.Generator
-    counts : (C,) tensor, optional
-        Sizes of consecutive blocks resampled within themselves (mixture components);
-        omitted: one block of all N.
-
-    Returns
-    -------
-    (N,) long tensor
-        Each slot's source index, inside the slot's own block.
-    """
-    n = len(weights)
-    counts = weights.new_full((1,), n) if counts is None else counts.to(weights.dtype)
-    block = torch.repeat_interleave(torch.arange(len(counts)), counts.long())
-    starts = torch.cumsum(counts, dim=0) - counts
-    cumulative = torch.cumsum(weights, dim=0)
-    before = torch.cat([cumulative.new_zeros(1), cumulative])[starts.long()]
-    offsets = torch.rand(len(counts), generator=generator, dtype=weights.dtype)
-    slot = torch.arange(n, dtype=weights.dtype)
-    positions = before[block] + (offsets[block] + slot - starts[block]) / counts[block]
-    drawn = torch.searchsorted(cumulative, positions)
-    first, last = starts[block].long(), (starts[block] + counts[block] - 1).long()
-    return torch.minimum(torch.maximum(drawn, first), last)
 
 
 @dataclass(frozen=True)
@@ -145,37 +111,6 @@ class ParticleUpdate:
     stages: int
     resampled: int
     acceptance: float
-
-
-@dataclass(frozen=True)
-class Mode:
-    """A cluster of particles.
-
-    Attributes
-    ----------
-    quaternion : (4,) numpy.ndarray
-        Weighted mean attitude (sign-canonical).
-    omega : (3,) numpy.ndarray
-        Weighted mean body rates (rad/s).
-    weight : float
-        Total weight of the cluster.
-    shape : int
-        Shape index of the cluster.
-    attitude_sigma : float
-        RMS attitude deviation of the members from the mean (rad).
-    omega_sigma : (3,) numpy.ndarray
-        Standard deviation of the members' rates (rad/s).
-    k : (2,) numpy.ndarray or None
-        Weighted mean tanh inertia parameters.
-    """
-
-    quaternion: np.ndarray
-    omega: np.ndarray
-    weight: float
-    shape: int
-    attitude_sigma: float
-    omega_sigma: np.ndarray
-    k: np.ndarray | None = None
 
 
 class AttitudeParticleFilter:
@@ -231,6 +166,7 @@ class AttitudeParticleFilter:
         q: Any,
         omega: Any,
         inertias: Sequence[Any],
+        *,
         log_weights: Any = None,
         k: Any = None,
         shape: Any = None,
@@ -601,53 +537,27 @@ class AttitudeParticleFilter:
         k = None if self.k is None else self.k + step[:, 6:8]
         return q, omega, k
 
+    def _folded(self, fold: Callable) -> tuple[torch.Tensor, torch.Tensor]:
+        """Particles folded onto the symmetry-equivalent closest to the heaviest one."""
+        best = int(torch.argmax(self.log_weights))
+        q, omega = fold(
+            self.q[best].numpy(), self.q.numpy(), self.omega.numpy(), self.shape.numpy()
+        )
+        return torch.as_tensor(q, dtype=self.dtype), torch.as_tensor(omega, dtype=self.dtype)
+
     def _cluster(
         self, q: torch.Tensor, omega: torch.Tensor, shape: torch.Tensor, weights: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Greedy clustering: the heaviest unassigned particle seeds a cluster of every
-        unassigned particle of its shape within
-        ``mode_angle`` and ``mode_rate``; after ``max_clusters`` seeds every shape still
-        without one gets one, and the rest join their nearest seed of the same shape (so the
-        cost stays ``O(max_clusters · N)``). Among equally heavy particles (all of them after
-        a resampling) the first in particle order seeds: an unstable sort would leave that
-        choice, and with it the clusters, to the sorting kernel of the processor.
-
-        Returns
-        -------
-        labels : (N,) long tensor
-        centers : (C, 4) tensor
-            Seed attitude of each cluster.
-        """
-        labels = torch.full((len(q),), -1, dtype=torch.long)
-        seeds: list[int] = []
-        cos_half = math.cos(0.5 * self.mode_angle)
-        order = torch.argsort(weights, descending=True, stable=True)
-        while len(seeds) < self.max_clusters:
-            free = order[labels[order] < 0]
-            if len(free) == 0:
-                break
-            seed = int(free[0])
-            # angle(q, q_s) ≤ θ  ⇔  |q · q_s| ≥ cos(θ/2): one matrix-vector product.
-            near = (
-                (labels < 0)
-                & (shape == shape[seed])
-                & (torch.abs(q @ q[seed]) >= cos_half)
-                & (torch.linalg.vector_norm(omega - omega[seed], dim=1) <= self.mode_rate)
-            )
-            near[seed] = True
-            labels[near] = len(seeds)
-            seeds.append(seed)
-        unseeded = (labels < 0) & ~torch.isin(shape, shape[seeds])
-        for value in torch.unique(shape[unseeded]).tolist():
-            members = unseeded & (shape == value)
-            labels[members] = len(seeds)
-            seeds.append(int(order[members[order]][0]))
-        rest = labels < 0
-        if rest.any():
-            closeness = torch.abs(q[rest] @ q[seeds].T)
-            closeness = torch.where(shape[rest][:, None] == shape[seeds][None], closeness, -1.0)
-            labels[rest] = torch.argmax(closeness, dim=1)
-        return labels, q[seeds]
+        """:func:`filters.particle_modes.greedy_clusters` with this filter's radii."""
+        return greedy_clusters(
+            q,
+            omega,
+            shape,
+            weights,
+            angle=self.mode_angle,
+            rate=self.mode_rate,
+            max_clusters=self.max_clusters,
+        )
 
     def modes(
         self,
@@ -669,74 +579,25 @@ class AttitudeParticleFilter:
         -------
         list of Mode
         """
-        q, omega, shape, weights = self.q, self.omega, self.shape, self.weights
-        if fold is not None:
-            q, omega = self._folded(fold)
-        labels, _ = self._cluster(q, omega, shape, weights)
-        out = []
-        for c in range(int(labels.max()) + 1):
-            members = labels == c
-            w = weights[members]
-            total = float(w.sum())
-            if total < min_weight:
-                continue
-            # normalised in the log domain: defined even when the total underflows to 0
-            log_w = self.log_weights[members]
-            finite = bool(torch.isfinite(log_w).any())
-            wn = torch.softmax(log_w, dim=0) if finite else torch.full_like(log_w, 1 / len(log_w))
-            qm = quaternion_mean(q[members], wn)
-            wm = (wn[:, None] * omega[members]).sum(dim=0)
-            angle = attitude_angle(q[members], qm[None])
-            km = None if self.k is None else (wn[:, None] * self.k[members]).sum(dim=0).numpy()
-            out.append(
-                Mode(
-                    quaternion=quaternion_canonical(qm).numpy(),
-                    omega=wm.numpy(),
-                    weight=total,
-                    shape=int(shape[members][0]),
-                    attitude_sigma=float(torch.sqrt(torch.sum(wn * angle**2))),
-                    omega_sigma=torch.sqrt(
-                        torch.sum(wn[:, None] * (omega[members] - wm) ** 2, dim=0)
-                    ).numpy(),
-                    k=km,
-                )
-            )
-        return sorted(out, key=lambda m: -m.weight)
-
-    def _folded(self, fold: Callable) -> tuple[torch.Tensor, torch.Tensor]:
-        """Particles folded onto the symmetry-equivalent closest to the heaviest one."""
-        best = int(torch.argmax(self.log_weights))
-        q, omega = fold(
-            self.q[best].numpy(), self.q.numpy(), self.omega.numpy(), self.shape.numpy()
+        q, omega = self._folded(fold) if fold is not None else (self.q, self.omega)
+        labels, _ = self._cluster(q, omega, self.shape, self.weights)
+        return weighted_modes(
+            q, omega, self.shape, self.log_weights, labels, k=self.k, min_weight=min_weight
         )
-        return torch.as_tensor(q, dtype=self.dtype), torch.as_tensor(omega, dtype=self.dtype)
 
     def estimate(self, fold: Callable | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Mean state of the heaviest mode and its covariance.
+        """Mean state of the heaviest mode and its covariance
+        (:func:`filters.particle_modes.heaviest_mode`; ``fold`` as in :meth:`modes`).
 
         Returns
         -------
         q : (4,) numpy.ndarray
-            Weighted quaternion mean of the heaviest mode.
         omega : (3,) numpy.ndarray
-            Weighted mean rates (rad/s).
+            Rates (rad/s).
         covariance : (6, 6) numpy.ndarray
-            Weighted covariance of ``[δθ, ω]`` of the mode's particles about the mean
-            (rad², rad²/s²).
+            Of ``[δθ, ω]`` (rad², rad²/s²).
         """
-        q, omega, shape, weights = self.q, self.omega, self.shape, self.weights
-        if fold is not None:
-            q, omega = self._folded(fold)
-        labels, _ = self._cluster(q, omega, shape, weights)
-        mass = torch.zeros(int(labels.max()) + 1, dtype=self.dtype).index_add_(0, labels, weights)
-        members = labels == int(torch.argmax(mass))
-        wn = weights[members] / weights[members].sum()
-        qm = quaternion_canonical(quaternion_mean(q[members], wn))
-        dtheta = quaternion_to_rotation_vector(
-            quaternion_multiply(q[members], quaternion_conjugate(qm)[None])
-        )
-        state = torch.cat([dtheta, omega[members]], dim=1)
-        mean = (wn[:, None] * state).sum(dim=0)
-        dev = state - mean
-        covariance = (wn[:, None] * dev).T @ dev
-        return qm.numpy(), mean[3:].numpy(), covariance.numpy()
+        q, omega = self._folded(fold) if fold is not None else (self.q, self.omega)
+        weights = self.weights
+        labels, _ = self._cluster(q, omega, self.shape, weights)
+        return heaviest_mode(q, omega, weights, labels)

@@ -386,6 +386,7 @@ class AttitudeUKF:
         omega: Any,
         covariance: Any,
         fx: Dynamics,
+        *,
         hx: Measurement | None = None,
         params: Any = None,
         process_noise: Callable[[float, int], np.ndarray] | None = None,

@@ -24,7 +24,7 @@ from lightcurve import io
 from lightcurve.atomic import atomic_write_table
 from lightcurve.observations import mjd_to_datetime
 
-__all__ = ["SUMMARY_KEYS", "invert_file", "resolve_shapes"]
+__all__ = ["SUMMARY_KEYS", "check_request", "invert_file", "resolve_shapes"]
 
 SUMMARY_KEYS = (
     "input",
@@ -85,6 +85,55 @@ def resolve_shapes(
     return names
 
 
+def _invert_arguments(
+    *,
+    q0: list[float] | None,
+    omega0_rad_s: list[float] | None,
+    attitude_sigma_deg: float | None,
+    omega_sigma_rad_s: float | None,
+    omega_max_rad_s: float | None,
+    particles: int | None,
+    init: str,
+) -> dict[str, Any]:
+    """The keyword arguments of :func:`lightcurve.inversion.invert` from the job's options
+    (those left None keep the library's defaults)."""
+    arguments = {
+        "q0": None if q0 is None else np.asarray(q0, float),
+        "omega0": None if omega0_rad_s is None else np.asarray(omega0_rad_s, float),
+        "attitude_sigma_deg": attitude_sigma_deg,
+        "omega_sigma": omega_sigma_rad_s,
+        "omega_max": omega_max_rad_s,
+        "particles": particles,
+        "init": init,
+    }
+    return {k: v for k, v in arguments.items() if v is not None}
+
+
+def check_request(options: dict[str, Any]) -> None:
+    """Check the options of a batch of :func:`invert_file` jobs before any input is read,
+    with the library's own rules (:func:`lightcurve.inversion.validate_request`).
+
+    Raises
+    ------
+    ValueError
+        The request the library would reject for every input.
+    """
+    from lightcurve.inversion import validate_request
+
+    names = options.get("shape_names")
+    keys = ("q0", "omega0_rad_s", "attitude_sigma_deg", "omega_sigma_rad_s", "omega_max_rad_s")
+    validate_request(
+        options["method"],
+        modes=bool(options.get("modes")),
+        n_shapes=None if names is None else len(names),
+        **_invert_arguments(
+            **{key: options.get(key) for key in keys},
+            particles=options.get("particles"),
+            init=options.get("init", "search"),
+        ),
+    )
+
+
 def invert_file(
     input_path: Path,
     result_dir: Path,
@@ -138,26 +187,17 @@ def invert_file(
                 "none of --shape, --shapes, --all-shapes was given"
             )
         shape_names = [declared]
-    if method == "ukf" and len(shape_names) != 1:
-        raise ValueError("method 'ukf' inverts one shape: give one (or use mmae/pf)")
     candidates = {name: lib.load(name) for name in shape_names}
-    options = {
-        "q0": None if q0 is None else np.asarray(q0, float),
-        "omega0": None if omega0_rad_s is None else np.asarray(omega0_rad_s, float),
-        "attitude_sigma_deg": attitude_sigma_deg,
-        "omega_sigma": omega_sigma_rad_s,
-        "omega_max": omega_max_rad_s,
-        "particles": particles,
-        "seed": seed,
-        "init": init,
-    }
-    result = invert(
-        observations,
-        candidates,
-        method=method,
-        modes=modes,
-        **{k: v for k, v in options.items() if v is not None},
+    options = _invert_arguments(
+        q0=q0,
+        omega0_rad_s=omega0_rad_s,
+        attitude_sigma_deg=attitude_sigma_deg,
+        omega_sigma_rad_s=omega_sigma_rad_s,
+        omega_max_rad_s=omega_max_rad_s,
+        particles=particles,
+        init=init,
     )
+    result = invert(observations, candidates, method=method, modes=modes, seed=seed, **options)
     atomic_write_table(result.estimates, result_dir / "estimates.parquet")
     return {
         "method": method,

@@ -27,7 +27,7 @@ import numpy as np
 
 from lightcurve.batch import run_batch
 from lightcurve.commands._args import float_vector, unit_quaternion
-from lightcurve.pipeline import SUMMARY_KEYS, invert_file, resolve_shapes
+from lightcurve.pipeline import SUMMARY_KEYS, check_request, invert_file, resolve_shapes
 
 NAME = "invert"
 HELP = "invert observation files for attitude, rates and shape (batch, resumable)"
@@ -75,7 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=("search", "none"),
         default="search",
         help="search: find the initial state (around --q0/--omega0 when given, else "
-        "globally); none: start the filters at --q0/--omega0 as given (default search)",
+        "globally); none (ukf, mmae): start the filters at --q0 and --omega0 (zero rates "
+        "without it) with their 1-sigma (default search)",
     )
     parser.add_argument(
         "--modes",
@@ -102,27 +103,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR", help="result folder")
 
 
-def _positive(name: str, value: float | None) -> None:
-    if value is not None and not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive, got {value}")
-
-
 def run(args: argparse.Namespace) -> int:
     names = resolve_shapes(
         args.library, args.shape, args.shapes and args.shapes.split(","), args.all_shapes
     )
-    for name, value in (
-        ("--attitude-sigma-deg", args.attitude_sigma_deg),
-        ("--omega-sigma", args.omega_sigma),
-        ("--omega-max", args.omega_max),
-        ("--particles", args.particles),
-        ("--workers", args.workers),
-    ):
-        _positive(name, value)
-    if args.method == "ukf" and names is not None and len(names) != 1:
-        raise ValueError("--method ukf inverts one shape: use --shape (or mmae/pf for several)")
-    if args.init == "none" and (args.q0 is None or args.omega0 is None):
-        raise ValueError("--init none starts the filters at --q0 and --omega0: give both")
+    if not args.workers > 0:
+        raise ValueError(f"--workers must be positive, got {args.workers}")
     deg = np.deg2rad
     options = {
         "method": args.method,
@@ -139,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
         "drop_bad_rows": args.drop_bad_rows,
         "modes": args.modes,
     }
+    # The library's own checks of the request, at start rather than once per input.
+    check_request(options)
     template = dict.fromkeys(SUMMARY_KEYS)
     template.update(method=args.method, shape_probabilities={}, modes=[])
     table = run_batch(

@@ -22,15 +22,14 @@ from filters.global_search import (
     BatchProblem,
     Candidates,
     Prior,
-    _best_distinct,
-    _replenish,
-    _with_twins,
     distinct_states,
     global_search,
     refine,
     residual_jacobian,
     uniform_rates,
 )
+from filters.global_search.refinement import _with_twins
+from filters.global_search.selection import _best_distinct, _replenish
 from filters.symmetry import SymmetryGroup
 
 INERTIA = np.diag([1.0, 1.7, 2.2])
@@ -203,7 +202,7 @@ def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
     max_rotation_deg, expected
 ):
     # 120 s at up to 4°/s with at most 20° between samples: ⌈120 · 4 / 20⌉ = 24 epochs,
-    # more than max_epochs = 10 (which alone would put 48° of rotation between samples).
+    # more than min_epochs = 10 (which alone would put 48° of rotation between samples).
     problem = _problem(random_quaternion((), 3), np.radians([1.0, 0.5, -1.0]), seconds=120)
     result = global_search(
         problem,
@@ -213,7 +212,7 @@ def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
         screen_duration=16.0,
         windows=(16.0, 120.0),
         keep=(4, 2),
-        max_epochs=10,
+        min_epochs=10,
         max_rotation=math.radians(max_rotation_deg),
         iterations=2,
     )

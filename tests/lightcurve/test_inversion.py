@@ -36,7 +36,7 @@ LIGHT = {
     "global_candidates": 8000,
     "refine_keep": (48, 8, 3),
     "hypotheses": 3,
-    "max_epochs": 60,
+    "min_epochs": 60,
 }
 
 

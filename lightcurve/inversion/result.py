@@ -1,0 +1,151 @@
+"""The outcome of an inversion: :class:`InversionResult` and the rows of its per-epoch table."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from filters.attitude import (
+    quaternion_canonical,
+)
+from filters.symmetry import SymmetryGroup
+from lightcurve.inversion.context import Context
+
+
+@dataclass
+class InversionResult:
+    """Outcome of :func:`invert` (the fields the batch command writes).
+
+    Attributes
+    ----------
+    method : str
+    shape : str or None
+        Most probable (or only) shape.
+    shape_probabilities : dict
+        Shape name → posterior probability.
+    none_fits : bool
+        No candidate shape is consistent with the last measurements.
+    epoch_mjd : float
+        Epoch of the LAST measurement (UTC MJD); the state below holds there.
+    quaternion : (4,) numpy.ndarray
+        Attitude, inertial → body, sign-canonical.
+    omega_rad_s : (3,) numpy.ndarray
+        Body rates (rad/s).
+    attitude_sigma_deg : float
+        Total 1σ attitude uncertainty ``√(tr P_δθ)`` (deg).
+    omega_sigma_rad_s : (3,) numpy.ndarray
+        1σ of the rates (rad/s).
+    modes : list of dict
+        PF posterior modes: ``quaternion``, ``omega_rad_s``, ``weight`` plus ``shape``,
+        ``attitude_sigma_deg`` and ``equivalent_quaternions`` (the symmetry-equivalent
+        attitudes of the mode's shape); empty for UKF/MMAE.
+    residual_rms_mag : float
+        RMS of the measured − predicted magnitudes (gated measurements excluded).
+    n_measurements : int
+    estimates : pandas.DataFrame
+        One row per epoch: ``mjd, q1..q4, wx, wy, wz, sigma_att_x/y/z`` (deg),
+        ``sigma_wx/wy/wz`` (rad/s), ``predicted_mag, residual, gated`` and ``p_<shape>``
+        with several shapes.
+    notes : list of str
+    parameters : dict
+        Other estimates: ``k1, k2`` (tanh inertia), ``magnitude_offset`` (mag).
+    symmetry : dict
+        Symmetry group of the reported shape (order, continuous axis, quaternions).
+    covariance : (6, 6) numpy.ndarray
+        Final covariance of ``[δθ (rad, body frame), ω (rad/s)]``.
+    runtime_s : float
+    attitude_mode : dict or None
+        With ``modes=True``: the summary of :func:`lightcurve.attitude_modes.identify_attitude_mode`
+        (``attitude_mode``, ``attitude_mode_probability``, ``attitude_offsets_deg``, …).
+    """
+
+    method: str
+    shape: str | None
+    shape_probabilities: dict[str, float]
+    none_fits: bool
+    epoch_mjd: float
+    quaternion: np.ndarray
+    omega_rad_s: np.ndarray
+    attitude_sigma_deg: float
+    omega_sigma_rad_s: np.ndarray
+    modes: list[dict[str, Any]]
+    residual_rms_mag: float
+    n_measurements: int
+    estimates: pd.DataFrame
+    notes: list[str] = field(default_factory=list)
+    parameters: dict[str, float] = field(default_factory=dict)
+    symmetry: dict[str, Any] = field(default_factory=dict)
+    covariance: np.ndarray = field(default_factory=lambda: np.full((6, 6), np.nan))
+    runtime_s: float = 0.0
+    attitude_mode: dict[str, Any] | None = None
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready dictionary of the scalar fields (no table)."""
+        return {
+            "method": self.method,
+            "shape": self.shape,
+            "shape_probabilities": {k: float(v) for k, v in self.shape_probabilities.items()},
+            "none_fits": bool(self.none_fits),
+            "epoch_mjd": float(self.epoch_mjd),
+            "quaternion": [float(v) for v in self.quaternion],
+            "omega_rad_s": [float(v) for v in self.omega_rad_s],
+            "attitude_sigma_deg": float(self.attitude_sigma_deg),
+            "omega_sigma_rad_s": [float(v) for v in self.omega_sigma_rad_s],
+            "modes": self.modes,
+            "residual_rms_mag": float(self.residual_rms_mag),
+            "n_measurements": int(self.n_measurements),
+            "notes": list(self.notes),
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "symmetry": self.symmetry,
+            "runtime_s": float(self.runtime_s),
+            **(self.attitude_mode or {}),
+        }
+
+
+def make_result(
+    ctx: Context,
+    *,
+    name: str,
+    probabilities: np.ndarray,
+    none_fits: bool,
+    q: np.ndarray,
+    omega: np.ndarray,
+    covariance: np.ndarray,
+    estimates: pd.DataFrame,
+    group: SymmetryGroup,
+    modes: list[dict[str, Any]] | None = None,
+    parameters: dict[str, float] | None = None,
+) -> InversionResult:
+    """The result of a run: the final state ``q, omega`` (rad/s) with its covariance of
+    ``[δθ (rad), ω (rad/s)(, …)]``, the shape ``name`` and ``probabilities`` (one per
+    candidate shape, in ``ctx.names`` order), the per-epoch table and the notes so far."""
+    used = ~estimates["gated"].to_numpy(dtype=bool)
+    residuals = estimates["residual"].to_numpy()[used]
+    sigma_att = math.degrees(math.sqrt(max(float(np.trace(covariance[:3, :3])), 0.0)))
+    if sigma_att > 10.0:
+        ctx.notes.append(f"weakly observable: final attitude 1σ is {sigma_att:.1f}°")
+    return InversionResult(
+        method=ctx.method,
+        shape=name,
+        shape_probabilities={k: float(v) for k, v in zip(ctx.names, probabilities, strict=True)},
+        none_fits=bool(none_fits),
+        epoch_mjd=float(ctx.model.mjd[-1]),
+        quaternion=quaternion_canonical(np.asarray(q, dtype=float)),
+        omega_rad_s=np.asarray(omega, dtype=float),
+        attitude_sigma_deg=sigma_att,
+        omega_sigma_rad_s=np.sqrt(np.clip(np.diag(covariance)[3:6], 0.0, None)),
+        modes=modes or [],
+        residual_rms_mag=float(np.sqrt(np.mean(residuals**2))) if residuals.size else math.nan,
+        n_measurements=len(ctx.model),
+        estimates=estimates,
+        notes=ctx.notes,
+        parameters=parameters or {},
+        symmetry=group.to_dict(),
+        covariance=np.asarray(covariance, dtype=float)[:6, :6],
+        runtime_s=time.perf_counter() - ctx.start,
+    )
