@@ -405,13 +405,18 @@ class Renderer:
             from lightcurve.kernels.threads import run_rows
 
             sums = np.empty(len(light), dtype=fused.dtype)
-            step = max(1, _TABLE_BLOCK_ELEMENTS // self.n_facets)
+            step = max(1, _TABLE_BLOCK_ELEMENTS // fused.n_slots)
+            # the joint fractions go straight into the kernels' slots, in their dtype
+            slots = np.where(fused.padding, -1, self._order[fused.source])
+            table = self.compiled.visibility
 
             def blocks(first: int, last: int) -> None:
+                buffer = np.empty((min(step, last - first), fused.n_slots), fused.dtype)
                 for start in range(first, last, step):
                     rows = slice(start, min(start + step, last))
-                    factor = self._shadow_factor(light[rows], view[rows])
-                    sums[rows] = fused.sums(light[rows], view[rows], factor)
+                    factor = buffer[: rows.stop - start]
+                    table.joint(light[rows], view[rows], order=slots, facing=False, out=factor)
+                    sums[rows] = fused.sums(light[rows], view[rows], factor, per_slot=True)
 
             run_rows(blocks, len(light), 2 * self.n_facets)
         else:  # ray-cast shadow factors for blocks of rows, to bound the (rows × facets) array
