@@ -386,6 +386,13 @@ class Renderer:
             self._fused = FusedFlux(table, blocks, dtype)
         return self._fused
 
+    @cached_property
+    def _table_slots(self) -> np.ndarray:
+        """Compiled facet of each slot of the fused kernels (-1: padding), for the visibility
+        table to write the joint fractions straight into the kernels' layout and dtype."""
+        fused = self._fused_flux()
+        return np.where(fused.padding, -1, self._order[fused.source])
+
     def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
         """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
         as_numpy = not _is_tensor(q)
@@ -406,9 +413,7 @@ class Renderer:
 
             sums = np.empty(len(light), dtype=fused.dtype)
             step = max(1, _TABLE_BLOCK_ELEMENTS // fused.n_slots)
-            # the joint fractions go straight into the kernels' slots, in their dtype
-            slots = np.where(fused.padding, -1, self._order[fused.source])
-            table = self.compiled.visibility
+            slots, table = self._table_slots, self.compiled.visibility
 
             def blocks(first: int, last: int) -> None:
                 buffer = np.empty((min(step, last - first), fused.n_slots), fused.dtype)

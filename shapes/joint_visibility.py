@@ -18,9 +18,13 @@ is interpolated per sample point: with ``a`` and ``b`` the three grid nodes arou
 with ``ω_s`` the area share of one point of segment ``s``. At grid nodes this is the exact
 fraction of sample points that are both lit and seen; it is symmetric in ``L`` and ``V``.
 
-Speed: a per-direction bit set of the facets whose points are *all* visible (``full``) lets
-one AND of six words settle 64 facets at a time; only facets that are partly shadowed
-around ``L`` or ``V`` and face both are looked up point by point.
+Speed: per-direction bit sets of the facets whose points are *all* visible (``full``) and
+of those none of whose points is (``empty``), reduced over the three corners of every grid
+cell, settle 64 facets at a time with a few ANDs: 1 when all points see the six corners, 0
+when none sees the three corners of ``L``'s or of ``V``'s cell. Only facets that are partly
+shadowed around ``L`` or ``V`` and face both are looked up point by point, and within them
+a word of points that is all ones at the three nodes of one side needs only the other
+side's three words (none when all ones on both sides).
 """
 
 from __future__ import annotations
@@ -155,6 +159,7 @@ def joint_rows(
     compact,
     cell_partial,
     cell_front,
+    cell_hidden,
     normals,
     segment_start,
     segment_word,
@@ -175,11 +180,13 @@ def joint_rows(
         Grid resolution; ``flat_index`` its ``(6 (n+1)²,)`` node lookup.
     row_words, row_rank, compact :
         The per-direction bit rows, stored sparsely (see :func:`_word`).
-    cell_partial, cell_front : (cells, C) uint64
+    cell_partial, cell_front, cell_hidden : (cells, C) uint64
         Per grid cell, bit ``k % 64`` of word ``k // 64``: facet ``k`` has a point that
-        does not see one of the cell's corners; facet ``k`` faces one of them. A facet
-        facing ``L`` faces a corner of ``L``'s cell (``L`` is their positive blend); a
-        facet all of whose points see the six corners has joint fraction 1.
+        does not see one of the cell's corners; facet ``k`` faces one of them; no point of
+        facet ``k`` sees any of them. A facet facing ``L`` faces a corner of ``L``'s cell
+        (``L`` is their positive blend); a facet all of whose points see the six corners
+        has joint fraction 1, one hidden from the three corners of ``L``'s or ``V``'s cell
+        has 0.
     normals : (3, K) float64
         Facet normals in the grid frame.
     segment_start : (K + 1,) int64
@@ -218,8 +225,13 @@ def joint_rows(
         view_nodes = (b0, b1, b2, wb0, wb1, wb2)
         for c in range(chunks):
             front = cell_front[cl, c] & cell_front[cv, c]
-            partial_l = cell_partial[cl, c] & front
-            partial_v = cell_partial[cv, c] & front
+            hidden = (cell_hidden[cl, c] | cell_hidden[cv, c]) & front
+            partial_l = cell_partial[cl, c] & front & ~hidden
+            partial_v = cell_partial[cv, c] & front & ~hidden
+            while hidden != 0:  # every popcount is 0
+                k = c * 64 + np.int64(_trailing_zeros(hidden))
+                hidden &= hidden - np.uint64(1)
+                out[r, k] = 0.0
             todo = partial_l | partial_v
             while todo != 0:
                 bit = _trailing_zeros(todo)
@@ -392,19 +404,27 @@ def direction_fractions(bits, segment_start, segment_word, segment_mask, segment
 
 
 @njit(**_JIT)
-def full_flags(bits, segment_start, segment_word, segment_mask, out):
-    """Set bit ``k % 64`` of ``out[d, k // 64]`` when every point of facet ``k`` is visible
-    from direction ``d`` (facets without segments and the padding bits are always set)."""
+def full_flags(bits, segment_start, segment_word, segment_mask, full, empty):
+    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64``: every point of facet
+    ``k`` is visible from ``d`` (``full[d]``; facets without segments and the padding bits
+    are always set) / no point of facet ``k`` is (``empty[d]``; never set for facets
+    without segments)."""
     n_facets = segment_start.shape[0] - 1
     for d in range(bits.shape[0]):
-        for c in range(out.shape[1]):
-            out[d, c] = ~np.uint64(0)
+        for c in range(full.shape[1]):
+            full[d, c] = ~np.uint64(0)
+            empty[d, c] = np.uint64(0)
         for k in range(n_facets):
+            flag = np.uint64(1) << np.uint64(k % 64)
+            seen = False
             for s in range(segment_start[k], segment_start[k + 1]):
-                mask = segment_mask[s]
-                if bits[d, segment_word[s]] & mask != mask:
-                    out[d, k // 64] &= ~(np.uint64(1) << np.uint64(k % 64))
-                    break
+                word = bits[d, segment_word[s]] & segment_mask[s]
+                if word != segment_mask[s]:
+                    full[d, k // 64] &= ~flag
+                if word != 0:
+                    seen = True
+            if not seen and segment_start[k] < segment_start[k + 1]:
+                empty[d, k // 64] |= flag
 
 
 def segment_layout(

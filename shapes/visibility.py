@@ -539,12 +539,14 @@ class VisibilityTable:
                 "rotation": np.ascontiguousarray(self.rotation),
             }
             full = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
+            hidden = np.empty_like(full)
             _kernels().full_flags(
                 self.bits,
                 lookup["segment_start"],
                 lookup["segment_word"],
                 lookup["segment_mask"],
                 full,
+                hidden,
             )
             lookup["full"] = full
             front = np.zeros((len(self.grid), 64 * full.shape[1]), dtype=bool)
@@ -553,6 +555,7 @@ class VisibilityTable:
             corners = self._cell_corners()
             lookup["cell_partial"] = ~np.bitwise_and.reduce(full[corners], axis=1)
             lookup["cell_front"] = np.bitwise_or.reduce(front[corners], axis=1)
+            lookup["cell_hidden"] = np.bitwise_and.reduce(hidden[corners], axis=1)
             lookup.update(self._sparse_rows())
             self._lookups[key] = lookup
         return self._lookups[key]
@@ -685,6 +688,7 @@ class VisibilityTable:
             lookup["compact"],
             lookup["cell_partial"],
             lookup["cell_front"],
+            lookup["cell_hidden"],
             lookup["normals"],
             lookup["segment_start"],
             lookup["segment_word"],
