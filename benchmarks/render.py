@@ -14,13 +14,11 @@ One run measures, each with its baseline and the ratio (best of ``--repeats``):
   from numba's on-disk cache) measured in a subprocess;
 * the cost of a small call (13 sigma points × one epoch of a 24-facet cylinder, the UKF's),
   µs per call, fused vs torch;
-* table vs exact shadowing accuracy, and batch vs single calls;
-* the cost of shadow tables: ``shadows="table"`` over ``"none"`` on the box-wing and Itokawa
-  (float32, float64; random rows and a tumbling light curve), CPU time on one thread.
+* table vs exact shadowing accuracy, and batch vs single calls.
 
 Prints JSON with the machine and its load.
 
-    python -m benchmarks.render [--epochs 10000] [--repeats 3] [--threads N] [--only shadow-cost]
+    python -m benchmarks.render [--epochs 10000] [--repeats 3] [--threads N]
 """
 
 from __future__ import annotations
@@ -36,11 +34,7 @@ import numpy as np
 import torch
 
 from benchmarks._machine import machine_info
-from filters.attitude import (
-    quaternion_multiply,
-    random_quaternion,
-    rotation_vector_to_quaternion,
-)
+from filters.attitude import random_quaternion
 from lightcurve.kernels import get_num_threads, set_num_threads
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
@@ -88,57 +82,6 @@ def shadow_table_accuracy(n: int = 2000, seed: int = 20261122) -> dict:
             "max_abs_mag": float(np.max(np.abs(diff))),
             "seed": seed,
         }
-    return out
-
-
-def table_shadow_cost(n_epochs: int, repeats: int, seed: int = 20261201) -> dict:
-    """Rendering with shadow tables against ``--shadows none`` on the same rows.
-
-    The box-wing and Itokawa, float32 and float64, ``n_epochs`` rows of two kinds: random
-    attitudes and Sun/observer directions (every row looks up other grid cells), and a
-    tumbling light curve (0.5° of rotation per epoch, phase angle 10°→80°), whose
-    consecutive rows share cells. CPU seconds of the calling thread on one kernel thread
-    (best of ``repeats``; the two modes alternate, so both see the same load).
-    """
-    rng = np.random.default_rng(seed)
-    sun = rng.normal(size=(n_epochs, 3))
-    sun *= 1.496e11 / np.linalg.norm(sun, axis=1, keepdims=True)
-    q, _, observer = workload(n_epochs, seed)
-    random_rows = (q, sun, observer)
-    axis = rng.normal(size=3)
-    axis /= np.linalg.norm(axis)
-    spin = rotation_vector_to_quaternion(np.radians(0.5) * np.arange(n_epochs)[:, None] * axis)
-    phase = np.radians(np.linspace(10.0, 80.0, n_epochs))
-    tumbling_rows = (
-        np.asarray(quaternion_multiply(spin, random_quaternion(1, rng)[0])),
-        np.tile([1.496e11, 0.0, 0.0], (n_epochs, 1)),
-        4e7 * np.stack([np.cos(phase), np.sin(phase), np.zeros(n_epochs)], axis=1),
-    )
-    out = {"epochs": n_epochs, "seed": seed, "kernel_threads": 1}
-    set_num_threads(1)
-    try:
-        for name in ("box_wing", "itokawa"):
-            shape = get_library().load(name)
-            for dtype in (torch.float32, torch.float64):
-                key = f"{name}_{str(dtype).split('.')[-1]}"
-                renderers = {m: Renderer(shape, shadows=m, dtype=dtype) for m in ("none", "table")}
-                out[key] = {"effective_facets": renderers["none"].n_facets}
-                for rows_name, rows in (("random", random_rows), ("tumbling", tumbling_rows)):
-                    best = {m: np.inf for m in renderers}
-                    for renderer in renderers.values():
-                        renderer.flux(*(v[:64] for v in rows))
-                    for _ in range(repeats):
-                        for mode, renderer in renderers.items():
-                            start = time.thread_time()
-                            renderer.flux(*rows)
-                            best[mode] = min(best[mode], time.thread_time() - start)
-                    out[key][rows_name] = {
-                        "none_cpu_s": best["none"],
-                        "table_cpu_s": best["table"],
-                        "table_over_none": best["table"] / best["none"],
-                    }
-    finally:
-        set_num_threads(None)
     return out
 
 
@@ -264,23 +207,9 @@ def main() -> None:
     parser.add_argument(
         "--threads", type=int, help="torch intra-op threads (default: torch's own choice)"
     )
-    parser.add_argument(
-        "--only",
-        choices=["shadow-cost"],
-        help="run one part: shadow-cost = table vs none shadowing (box-wing, Itokawa)",
-    )
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
-    if args.only == "shadow-cost":
-        result = {
-            "benchmark": "render shadow-cost",
-            "shadow_table_vs_none": table_shadow_cost(args.epochs, max(args.repeats, 5)),
-            "load_average": os.getloadavg(),
-            "machine": machine_info(),
-        }
-        print(json.dumps(result, indent=2))
-        return
     first_calls = {dtype: first_call_seconds(dtype) for dtype in ("float32", "float64")}
     sphere = primitives.icosphere(1.0, subdivisions=3)  # 1280 facets
     q, sun, obs = workload(args.epochs)
@@ -342,7 +271,6 @@ def main() -> None:
                 "first_call_fresh_process": first_calls,
                 "small_calls": small_calls(args.repeats),
                 "shadow_table_vs_exact": shadow_table_accuracy(),
-                "shadow_table_vs_none": table_shadow_cost(args.epochs, max(args.repeats, 5)),
                 "batch_vs_single_calls": batch_equals_single_calls(),
                 "load_average": os.getloadavg(),
                 "machine": machine_info(),
