@@ -386,6 +386,13 @@ class Renderer:
             self._fused = FusedFlux(table, blocks, dtype)
         return self._fused
 
+    @cached_property
+    def _table_slots(self) -> np.ndarray:
+        """Compiled facet of each slot of the fused kernels (-1: padding), for the visibility
+        table to write the joint fractions straight into the kernels' layout and dtype."""
+        fused = self._fused_flux()
+        return np.where(fused.padding, -1, self._order[fused.source])
+
     def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
         """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
         as_numpy = not _is_tensor(q)
@@ -405,13 +412,16 @@ class Renderer:
             from lightcurve.kernels.threads import run_rows
 
             sums = np.empty(len(light), dtype=fused.dtype)
-            step = max(1, _TABLE_BLOCK_ELEMENTS // self.n_facets)
+            step = max(1, _TABLE_BLOCK_ELEMENTS // fused.n_slots)
+            slots, table = self._table_slots, self.compiled.visibility
 
             def blocks(first: int, last: int) -> None:
+                buffer = np.empty((min(step, last - first), fused.n_slots), fused.dtype)
                 for start in range(first, last, step):
                     rows = slice(start, min(start + step, last))
-                    factor = self._shadow_factor(light[rows], view[rows])
-                    sums[rows] = fused.sums(light[rows], view[rows], factor)
+                    factor = buffer[: rows.stop - start]
+                    table.joint(light[rows], view[rows], order=slots, facing=False, out=factor)
+                    sums[rows] = fused.sums(light[rows], view[rows], factor, per_slot=True)
 
             run_rows(blocks, len(light), 2 * self.n_facets)
         else:  # ray-cast shadow factors for blocks of rows, to bound the (rows × facets) array

@@ -18,9 +18,13 @@ is interpolated per sample point: with ``a`` and ``b`` the three grid nodes arou
 with ``ω_s`` the area share of one point of segment ``s``. At grid nodes this is the exact
 fraction of sample points that are both lit and seen; it is symmetric in ``L`` and ``V``.
 
-Speed: a per-direction bit set of the facets whose points are *all* visible (``full``) lets
-one AND of six words settle 64 facets at a time; only facets that are partly shadowed
-around ``L`` or ``V`` and face both are looked up point by point.
+Speed: per-direction bit sets of the facets whose points are *all* visible (``full``) and
+of those none of whose points is (``empty``), reduced over the three corners of every grid
+cell, settle 64 facets at a time with a few ANDs: 1 when all points see the six corners, 0
+when none sees the three corners of ``L``'s or of ``V``'s cell. Only facets that are partly
+shadowed around ``L`` or ``V`` and face both are looked up point by point, and within them
+a word of points that is all ones at the three nodes of one side needs only the other
+side's three words (none when all ones on both sides).
 """
 
 from __future__ import annotations
@@ -155,6 +159,7 @@ def joint_rows(
     compact,
     cell_partial,
     cell_front,
+    cell_hidden,
     normals,
     segment_start,
     segment_word,
@@ -175,11 +180,13 @@ def joint_rows(
         Grid resolution; ``flat_index`` its ``(6 (n+1)²,)`` node lookup.
     row_words, row_rank, compact :
         The per-direction bit rows, stored sparsely (see :func:`_word`).
-    cell_partial, cell_front : (cells, C) uint64
+    cell_partial, cell_front, cell_hidden : (cells, C) uint64
         Per grid cell, bit ``k % 64`` of word ``k // 64``: facet ``k`` has a point that
-        does not see one of the cell's corners; facet ``k`` faces one of them. A facet
-        facing ``L`` faces a corner of ``L``'s cell (``L`` is their positive blend); a
-        facet all of whose points see the six corners has joint fraction 1.
+        does not see one of the cell's corners; facet ``k`` faces one of them; no point of
+        facet ``k`` sees any of them. A facet facing ``L`` faces a corner of ``L``'s cell
+        (``L`` is their positive blend); a facet all of whose points see the six corners
+        has joint fraction 1, one hidden from the three corners of ``L``'s or ``V``'s cell
+        has 0.
     normals : (3, K) float64
         Facet normals in the grid frame.
     segment_start : (K + 1,) int64
@@ -194,6 +201,9 @@ def joint_rows(
     """
     n_facets = normals.shape[1]
     chunks = cell_partial.shape[1]
+    stored_l = np.empty(row_words.shape[1], np.uint64)
+    stored_v = np.empty(row_words.shape[1], np.uint64)
+    nothing = np.zeros(row_words.shape[1], np.uint64)
     for r in range(light.shape[0]):
         lx, ly, lz = _rotate(light, r, rotation)
         vx, vy, vz = _rotate(view, r, rotation)
@@ -207,88 +217,43 @@ def joint_rows(
                 out[r, k] = 1.0
         cl, a0, a1, a2, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
         cv, b0, b1, b2, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
+        # words with a point that does not see one of L's (V's) nodes; all others are ones
+        for c in range(row_words.shape[1]):
+            stored_l[c] = row_words[a0, c] | row_words[a1, c] | row_words[a2, c]
+            stored_v[c] = row_words[b0, c] | row_words[b1, c] | row_words[b2, c]
+        light_nodes = (a0, a1, a2, wa0, wa1, wa2)
+        view_nodes = (b0, b1, b2, wb0, wb1, wb2)
         for c in range(chunks):
             front = cell_front[cl, c] & cell_front[cv, c]
-            partial_l = cell_partial[cl, c] & front
-            partial_v = cell_partial[cv, c] & front
-            # partly shadowed around L only: every point sees V's corners, J = lit fraction
-            _one_sided(
-                lx,
-                ly,
-                lz,
-                vx,
-                vy,
-                vz,
-                c,
-                partial_l & ~partial_v,
-                a0,
-                a1,
-                a2,
-                wa0,
-                wa1,
-                wa2,
-                row_words,
-                row_rank,
-                compact,
-                normals,
-                segment_start,
-                segment_word,
-                segment_mask,
-                segment_weight,
-                facing,
-                out,
-                r,
-            )
-            _one_sided(
-                lx,
-                ly,
-                lz,
-                vx,
-                vy,
-                vz,
-                c,
-                partial_v & ~partial_l,
-                b0,
-                b1,
-                b2,
-                wb0,
-                wb1,
-                wb2,
-                row_words,
-                row_rank,
-                compact,
-                normals,
-                segment_start,
-                segment_word,
-                segment_mask,
-                segment_weight,
-                facing,
-                out,
-                r,
-            )
-            todo = partial_l & partial_v
+            hidden = (cell_hidden[cl, c] | cell_hidden[cv, c]) & front
+            partial_l = cell_partial[cl, c] & front & ~hidden
+            partial_v = cell_partial[cv, c] & front & ~hidden
+            while hidden != 0:  # every popcount is 0
+                k = c * 64 + np.int64(_trailing_zeros(hidden))
+                hidden &= hidden - np.uint64(1)
+                out[r, k] = 0.0
+            todo = partial_l | partial_v
             while todo != 0:
-                k = c * 64 + np.int64(_trailing_zeros(todo))
+                bit = _trailing_zeros(todo)
                 todo &= todo - np.uint64(1)
-                if facing and not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
-                    continue
-                total = 0.0
-                for s in range(segment_start[k], segment_start[k + 1]):
-                    w, m = segment_word[s], segment_mask[s]
-                    p00, p01, p02, p10, p11, p12, p20, p21, p22 = _pairs(
-                        _word(row_words, row_rank, compact, a0, w) & m,
-                        _word(row_words, row_rank, compact, a1, w) & m,
-                        _word(row_words, row_rank, compact, a2, w) & m,
-                        _word(row_words, row_rank, compact, b0, w),
-                        _word(row_words, row_rank, compact, b1, w),
-                        _word(row_words, row_rank, compact, b2, w),
-                    )
-                    total += segment_weight[s] * (
-                        wa0 * (wb0 * p00 + wb1 * p01 + wb2 * p02)
-                        + wa1 * (wb0 * p10 + wb1 * p11 + wb2 * p12)
-                        + wa2 * (wb0 * p20 + wb1 * p21 + wb2 * p22)
-                    )
-                out[r, k] = total
+                k = c * 64 + np.int64(bit)
+                if not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
+                    continue  # 0 (facing) or unspecified: no lookup
+                # a side where the facet is not partly shadowed has all its words ones
+                out[r, k] = _joint_facet(
+                    k,
+                    light_nodes,
+                    view_nodes,
+                    stored_l if (partial_l >> bit) & np.uint64(1) else nothing,
+                    stored_v if (partial_v >> bit) & np.uint64(1) else nothing,
+                    row_words,
+                    row_rank,
+                    compact,
+                    segment_start,
+                    segment_word,
+                    segment_mask,
+                    segment_weight,
+                )
 
 
 @njit(**_JIT)
@@ -300,50 +265,66 @@ def _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
 
 
 @njit(**_JIT)
-def _one_sided(
-    lx,
-    ly,
-    lz,
-    vx,
-    vy,
-    vz,
-    c,
-    todo,
-    d0,
-    d1,
-    d2,
-    w0,
-    w1,
-    w2,
+def _blend(nodes, row_words, row_rank, compact, w, m):
+    """``Σ_a α_a popcount(x_a & m)`` over the three nodes ``(d0, d1, d2, α0, α1, α2)``."""
+    d0, d1, d2, w0, w1, w2 = nodes
+    return (
+        w0 * float(_popcount(_word(row_words, row_rank, compact, d0, w) & m))
+        + w1 * float(_popcount(_word(row_words, row_rank, compact, d1, w) & m))
+        + w2 * float(_popcount(_word(row_words, row_rank, compact, d2, w) & m))
+    )
+
+
+@njit(**_JIT)
+def _joint_facet(
+    k,
+    light_nodes,
+    view_nodes,
+    stored_l,
+    stored_v,
     row_words,
     row_rank,
     compact,
-    normals,
     segment_start,
     segment_word,
     segment_mask,
     segment_weight,
-    facing,
-    out,
-    r,
 ):
-    """Facets ``todo`` of chunk ``c`` whose points all see the other direction's three grid
-    nodes: the joint fraction is the fraction interpolated over nodes ``d0, d1, d2`` (three
-    words per segment instead of six)."""
-    while todo != 0:
-        k = c * 64 + np.int64(_trailing_zeros(todo))
-        todo &= todo - np.uint64(1)
-        if facing and not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
-            continue
-        total = 0.0
-        for s in range(segment_start[k], segment_start[k + 1]):
-            w, m = segment_word[s], segment_mask[s]
-            total += segment_weight[s] * (
-                w0 * float(_popcount(_word(row_words, row_rank, compact, d0, w) & m))
-                + w1 * float(_popcount(_word(row_words, row_rank, compact, d1, w) & m))
-                + w2 * float(_popcount(_word(row_words, row_rank, compact, d2, w) & m))
+    """``J_k = Σ_s ω_s Σ_a Σ_b α_a β_b popcount(x_{a,s} & y_{b,s})`` of one facet.
+
+    A segment whose word is all ones at the three nodes of one side (not stored, see
+    ``stored_l``/``stored_v``) needs only the other side's three words (``Σ_a α_a = 1``), and
+    none when both are: the result then differs from the nine-pair sum by rounding only.
+    """
+    a0, a1, a2, wa0, wa1, wa2 = light_nodes
+    b0, b1, b2, wb0, wb1, wb2 = view_nodes
+    total = 0.0
+    for s in range(segment_start[k], segment_start[k + 1]):
+        w, m = segment_word[s], segment_mask[s]
+        bit = np.uint64(w & 63)
+        shadowed_l = (stored_l[w >> 6] >> bit) & np.uint64(1)
+        shadowed_v = (stored_v[w >> 6] >> bit) & np.uint64(1)
+        if shadowed_l == 0 and shadowed_v == 0:
+            total += segment_weight[s] * float(_popcount(m))
+        elif shadowed_l == 0:
+            total += segment_weight[s] * _blend(view_nodes, row_words, row_rank, compact, w, m)
+        elif shadowed_v == 0:
+            total += segment_weight[s] * _blend(light_nodes, row_words, row_rank, compact, w, m)
+        else:
+            p00, p01, p02, p10, p11, p12, p20, p21, p22 = _pairs(
+                _word(row_words, row_rank, compact, a0, w) & m,
+                _word(row_words, row_rank, compact, a1, w) & m,
+                _word(row_words, row_rank, compact, a2, w) & m,
+                _word(row_words, row_rank, compact, b0, w),
+                _word(row_words, row_rank, compact, b1, w),
+                _word(row_words, row_rank, compact, b2, w),
             )
-        out[r, k] = total
+            total += segment_weight[s] * (
+                wa0 * (wb0 * p00 + wb1 * p01 + wb2 * p02)
+                + wa1 * (wb0 * p10 + wb1 * p11 + wb2 * p12)
+                + wa2 * (wb0 * p20 + wb1 * p21 + wb2 * p22)
+            )
+    return total
 
 
 @njit(**_JIT)
@@ -423,19 +404,27 @@ def direction_fractions(bits, segment_start, segment_word, segment_mask, segment
 
 
 @njit(**_JIT)
-def full_flags(bits, segment_start, segment_word, segment_mask, out):
-    """Set bit ``k % 64`` of ``out[d, k // 64]`` when every point of facet ``k`` is visible
-    from direction ``d`` (facets without segments and the padding bits are always set)."""
+def full_flags(bits, segment_start, segment_word, segment_mask, full, empty):
+    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64``: every point of facet
+    ``k`` is visible from ``d`` (``full[d]``; facets without segments and the padding bits
+    are always set) / no point of facet ``k`` is (``empty[d]``; never set for facets
+    without segments)."""
     n_facets = segment_start.shape[0] - 1
     for d in range(bits.shape[0]):
-        for c in range(out.shape[1]):
-            out[d, c] = ~np.uint64(0)
+        for c in range(full.shape[1]):
+            full[d, c] = ~np.uint64(0)
+            empty[d, c] = np.uint64(0)
         for k in range(n_facets):
+            flag = np.uint64(1) << np.uint64(k % 64)
+            seen = False
             for s in range(segment_start[k], segment_start[k + 1]):
-                mask = segment_mask[s]
-                if bits[d, segment_word[s]] & mask != mask:
-                    out[d, k // 64] &= ~(np.uint64(1) << np.uint64(k % 64))
-                    break
+                word = bits[d, segment_word[s]] & segment_mask[s]
+                if word != segment_mask[s]:
+                    full[d, k // 64] &= ~flag
+                if word != 0:
+                    seen = True
+            if not seen and segment_start[k] < segment_start[k + 1]:
+                empty[d, k // 64] |= flag
 
 
 def segment_layout(

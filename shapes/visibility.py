@@ -509,19 +509,21 @@ class VisibilityTable:
 
     # ------------------------------------------------------------------ lookups
     def _lookup(self, order: np.ndarray | None) -> dict[str, np.ndarray]:
-        """The kernels' arrays with the facets in ``order`` (output column j = facet
-        ``order[j]``; None: the table's own order), cached."""
+        """The kernels' arrays with output column ``j`` = facet ``order[j]`` (None: the
+        table's own order; a facet may fill several columns or none; -1: a column whose
+        value is left unspecified), cached."""
         key = b"" if order is None else np.asarray(order, np.int64).tobytes()
         if key not in self._lookups:
-            k = self.n_facets
-            order = np.arange(k) if order is None else np.asarray(order, np.int64)
-            if sorted(order.tolist()) != list(range(k)):
-                raise ValueError(f"order must be a permutation of the {k} facets")
+            order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
+            if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
+                raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
+            k = len(order)
+            unused = order < 0
             lay = self.layout
             by_facet = np.argsort(lay["segment_facet"], kind="stable")
-            count = np.bincount(lay["segment_facet"], minlength=k)
+            count = np.bincount(lay["segment_facet"], minlength=self.n_facets)
             start = np.concatenate([[0], np.cumsum(count)])
-            count = count[order]
+            count = np.where(unused, 0, count[order])
             first = np.repeat(start[order], count)
             step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
             segments = by_facet[first + step]
@@ -531,25 +533,29 @@ class VisibilityTable:
                 "segment_word": np.ascontiguousarray(lay["segment_word"][segments]),
                 "segment_mask": np.ascontiguousarray(mask[segments], dtype=np.uint64),
                 "segment_weight": np.ascontiguousarray(lay["segment_weight"][segments]),
-                "normals": np.ascontiguousarray(self.normals[order].T),
+                # an unused column faces nowhere: never looked up
+                "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
                 "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
                 "rotation": np.ascontiguousarray(self.rotation),
             }
             full = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
+            hidden = np.empty_like(full)
             _kernels().full_flags(
                 self.bits,
                 lookup["segment_start"],
                 lookup["segment_word"],
                 lookup["segment_mask"],
                 full,
+                hidden,
             )
             lookup["full"] = full
             front = np.zeros((len(self.grid), 64 * full.shape[1]), dtype=bool)
-            front[:, :k] = self.grid.directions @ self.normals[order].T > 0.0
+            front[:, :k] = self.grid.directions @ lookup["normals"] > 0.0
             front = _bit_rows(front)
             corners = self._cell_corners()
             lookup["cell_partial"] = ~np.bitwise_and.reduce(full[corners], axis=1)
             lookup["cell_front"] = np.bitwise_or.reduce(front[corners], axis=1)
+            lookup["cell_hidden"] = np.bitwise_and.reduce(hidden[corners], axis=1)
             lookup.update(self._sparse_rows())
             self._lookups[key] = lookup
         return self._lookups[key]
@@ -637,18 +643,21 @@ class VisibilityTable:
         light, view : (..., 3) float arrays or torch.Tensors
             Body-frame directions to the Sun and the observer (non-zero, need not be unit;
             same shape).
-        order : (K,) int, optional
-            Facet of each output column (default: the compiled facets' order).
+        order : (C,) int, optional
+            Facet of each output column (default: the compiled facets' order, ``C = K``);
+            a facet may fill several columns, and a column of -1 gets an unspecified value
+            without any work (a renderer's zero-area padding slots).
         facing : bool
             True: facets turned away from ``L`` or ``V`` give 0. False: their value is
             unspecified (for callers that multiply by ``max(0, n·L) max(0, n·V)``), which
             saves work.
-        out : (N, K) numpy array, optional
-            Output for numpy inputs of shape (N, 3) (dtype of the inputs).
+        out : (N, C) numpy array, optional
+            Output for numpy inputs of shape (N, 3) (float32 or float64; by default the
+            dtype of the inputs).
 
         Returns
         -------
-        (..., K) array of the input's kind, dtype (float32/float64) and device.
+        (..., C) array of the input's kind, dtype (float32/float64) and device.
             numpy inputs run a compiled kernel; torch inputs are differentiable through the
             barycentric weights (the bits are constants).
         """
@@ -662,11 +671,12 @@ class VisibilityTable:
                 f"{view.shape}"
             )
         dtype = np.result_type(light, view)
+        columns = lookup["normals"].shape[1]
         rows_l = np.ascontiguousarray(light.reshape(-1, 3))
         rows_v = np.ascontiguousarray(view.reshape(-1, 3))
-        result = np.empty((len(rows_l), self.n_facets), dtype) if out is None else out
-        if result.shape != (len(rows_l), self.n_facets):
-            raise ValueError(f"out must have shape {(len(rows_l), self.n_facets)}")
+        result = np.empty((len(rows_l), columns), dtype) if out is None else out
+        if result.shape != (len(rows_l), columns):
+            raise ValueError(f"out must have shape {(len(rows_l), columns)}")
         _kernels().joint_rows(
             rows_l,
             rows_v,
@@ -678,6 +688,7 @@ class VisibilityTable:
             lookup["compact"],
             lookup["cell_partial"],
             lookup["cell_front"],
+            lookup["cell_hidden"],
             lookup["normals"],
             lookup["segment_start"],
             lookup["segment_word"],
@@ -686,7 +697,7 @@ class VisibilityTable:
             facing,
             result,
         )
-        return result.reshape((*light.shape[:-1], self.n_facets))
+        return result.reshape((*light.shape[:-1], columns))
 
     def _joint_torch(self, light: Any, view: Any, lookup: dict[str, np.ndarray], facing: bool):
         import torch
@@ -701,7 +712,8 @@ class VisibilityTable:
         rows_v = view.reshape(-1, 3) @ rotation
         index_l, weight_l = self.grid.locate(rows_l)
         index_v, weight_v = self.grid.locate(rows_v)
-        pairs = np.empty((len(rows_l), 3, 3, self.n_facets))
+        columns = lookup["normals"].shape[1]
+        pairs = np.empty((len(rows_l), 3, 3, columns))
         _kernels().pair_values(
             index_l.cpu().numpy().astype(np.int64),
             index_v.cpu().numpy().astype(np.int64),
@@ -718,7 +730,7 @@ class VisibilityTable:
         if facing:
             normals = self._as_kind(lookup["normals"], light)
             result = result * ((rows_l @ normals > 0) & (rows_v @ normals > 0)).to(result.dtype)
-        return result.reshape(*shape, self.n_facets)
+        return result.reshape(*shape, columns)
 
     def _as_kind(self, array: np.ndarray, like: Any) -> Any:
         """``array`` converted to the kind, dtype and device of ``like`` (cached)."""

@@ -112,7 +112,8 @@ class FusedFlux:
     -----
     The kernels see the facets in tile layout (:mod:`lightcurve.kernels.tiles`): each block
     rearranged into tiles of facets with similar normals, padded with zero-area slots.
-    :attr:`source` gives the input facet of every slot; callers keep the input order.
+    :attr:`source` gives the input facet of every slot (:attr:`padding` flags the padding
+    slots, whose shadow factor is never used); callers keep the input order.
     """
 
     def __init__(
@@ -125,6 +126,7 @@ class FusedFlux:
             table[:3].T.astype(np.float64), [np.arange(b[1], b[2]) for b in blocks]
         )
         self.source = layout.source
+        self.padding = layout.padding
         self.facets = np.ascontiguousarray(table[:, layout.source])
         self.facets[3, layout.padding] = 0.0
         self.cones = layout.cones
@@ -154,7 +156,12 @@ class FusedFlux:
         return light, view, scale
 
     def sums(
-        self, light: np.ndarray, view: np.ndarray, shadow: np.ndarray | None = None
+        self,
+        light: np.ndarray,
+        view: np.ndarray,
+        shadow: np.ndarray | None = None,
+        *,
+        per_slot: bool = False,
     ) -> np.ndarray:
         """``Σ_i ρ_i A_i (n_i·L)(n_i·V) · shadow_i`` per row (float64).
 
@@ -164,9 +171,19 @@ class FusedFlux:
             Body-frame unit vectors (C order).
         shadow : (R, K) array, optional
             Shadow factor per row and facet (input order); ``None`` for none.
+        per_slot : bool
+            ``shadow`` is already given per slot, ``(R, S)`` in the compute dtype and C
+            order (column ``j`` for facet ``source[j]``): it is used without a copy.
         """
         out = np.zeros(light.shape[0])
-        if shadow is not None:  # the factor of every slot, in the compute dtype
+        if per_slot:
+            if shadow.shape != (light.shape[0], self.n_slots) or shadow.dtype != self.dtype:
+                raise ValueError(
+                    f"a per-slot shadow factor must be ({light.shape[0]}, {self.n_slots}) "
+                    f"{self.dtype}, got {shadow.shape} {shadow.dtype}"
+                )
+            shadow = np.ascontiguousarray(shadow)
+        elif shadow is not None:  # the factor of every slot, in the compute dtype
             shadow = np.ascontiguousarray(np.take(shadow, self.source, axis=1), dtype=self.dtype)
         facets, cones, blocks = self.facets, self.cones, self._blocks
 

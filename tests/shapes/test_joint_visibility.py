@@ -238,3 +238,34 @@ def test_sampling_resolves_large_merged_facets():
     np.testing.assert_allclose(np.bincount(sampling.facet, sampling.weight)[sampling.facet], 1.0)
     coarse = shapes.visibility.facet_sampling(compiled, 16, spacing=0.0)
     assert len(coarse) < len(sampling) / 10
+
+
+def test_joint_columns_may_repeat_facets_or_be_unused(builtin):
+    table = builtin.load("box_wing").compiled().visibility
+    light, view = _random_directions(200, seed=21), _random_directions(200, seed=22)
+    columns = np.array([3, -1, 0, 3, 7, -1, 13, 0])
+    reference = table.joint(light, view)
+    joint = table.joint(light, view, order=columns)
+    used = columns >= 0
+    assert joint.shape == (200, len(columns))
+    np.testing.assert_array_equal(joint[:, used], reference[:, columns[used]])
+    with pytest.raises(ValueError, match="facet indices below"):
+        table.joint(light, view, order=np.array([0, table.n_facets]))
+
+
+@pytest.mark.parametrize("name", ["box_wing", "itokawa"])
+def test_fused_table_flux_matches_the_torch_table_path(name):
+    """The fused path (joint fractions written into the kernels' slots, shortcuts for
+    unshadowed words) against the torch path (nine node pairs per facet, blended by einsum)."""
+    shape = shapes.get_library().load(name)
+    rng = np.random.default_rng(23)
+    n = 400
+    q = _unit(rng.normal(size=(n, 4)))
+    sun = AU * _random_directions(n, seed=24)
+    obs = 4e7 * _random_directions(n, seed=25)
+    fused = Renderer(shape, shadows="table").flux(q, sun, obs)
+    eager = Renderer(shape, shadows="table", backend="torch").flux(q, sun, obs)
+    np.testing.assert_array_equal(fused == 0.0, eager == 0.0)  # dark epochs stay dark
+    np.testing.assert_allclose(fused, eager, rtol=1e-12, atol=0.0)
+    single = Renderer(shape, shadows="table", dtype=torch.float32).flux(q, sun, obs)
+    np.testing.assert_allclose(single, fused, rtol=1e-4, atol=1e-6 * fused.max())
