@@ -12,7 +12,7 @@ eq. 2)
 with ``n`` the mean motion of the circular reference orbit (rad/s). The transition matrix and
 the zero-order-hold input matrix are the closed-form solutions of these equations (Vallado,
 *Fundamentals of Astrodynamics*, sec. 6.8); the process noise of white acceleration noise
-is discretised exactly with :func:`filters.kalman.discrete_process_noise`.
+is discretised exactly with :func:`filters.gaussian.discrete_process_noise`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.kalman import discrete_process_noise
+from filters.gaussian import discrete_process_noise
 
 __all__ = [
     "EARTH_MU",

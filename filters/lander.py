@@ -47,6 +47,7 @@ from filters.attitude import (
 )
 from filters.attitude._array import matvec
 from filters.camera import PinholeCamera
+from filters.gaussian import joseph_update, kalman_gain
 from filters.gravity import SphericalHarmonicGravity
 from filters.planner import FisherTrace, ObservationPlanner, PosteriorRollout
 
@@ -67,7 +68,6 @@ __all__ = [
     "anchor_pixels",
     "compare_strategies",
     "draw",
-    "ekf_update",
     "error_statistics",
     "navigate",
     "navigation_errors",
@@ -409,36 +409,6 @@ class LandmarkMap:
         return matvec(attitude_matrix(quaternion)[:, None], rel)
 
 
-def ekf_update(
-    p: np.ndarray, h: np.ndarray, residual: np.ndarray, sigma: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Batched EKF update with ``R = σ² I`` in Joseph form (Li et al. 2024, eqs. 14, 16, 18).
-
-    Parameters
-    ----------
-    p : (B, n, n) array
-        Prior covariance.
-    h : (B, m, n) array
-        Measurement Jacobian (zero rows for missing measurements).
-    residual : (B, m) array
-        ``z − h(x̂)`` (zero for missing measurements).
-    sigma : float
-        Measurement standard deviation.
-
-    Returns
-    -------
-    correction : (B, n) array
-    posterior : (B, n, n) array
-    """
-    r = sigma**2 * np.eye(h.shape[-2])
-    ht = np.swapaxes(h, -1, -2)
-    s = h @ p @ ht + r
-    gain = np.swapaxes(np.linalg.solve(s, h @ p), -1, -2)
-    i_kh = np.eye(p.shape[-1]) - gain @ h
-    post = i_kh @ p @ np.swapaxes(i_kh, -1, -2) + sigma**2 * gain @ np.swapaxes(gain, -1, -2)
-    return matvec(gain, residual), 0.5 * (post + np.swapaxes(post, -1, -2))
-
-
 @dataclass(frozen=True)
 class LanderModel:
     """Lander navigation model: propagation, landmark choice and measurement Jacobians.
@@ -590,10 +560,13 @@ class LanderModel:
         """
         delta = np.zeros((len(x), self.dim))
         estimate, post = x, p
+        # Joseph-form EKF update with R = σ² I (Li et al. 2024, eqs. 14, 16, 18)
+        r = self.pixel_sigma**2 * np.eye(pixels.shape[-1])
         for _ in range(iterations):
             predicted, h, rows = self.measurement(estimate, step, ids, valid)
             residual = np.where(rows, pixels - predicted, 0.0) + matvec(h, delta)
-            new_delta, post = ekf_update(p, h, residual, self.pixel_sigma)
+            gain, _ = kalman_gain(p, h, r)
+            new_delta, post = matvec(gain, residual), joseph_update(p, gain, h, r)
             estimate = self.correct(x, new_delta)
             converged = np.max(np.abs(new_delta - delta)) < _ITERATION_TOLERANCE
             delta = new_delta

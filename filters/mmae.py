@@ -58,7 +58,7 @@ from filters.attitude import (
     quaternion_multiply,
     quaternion_to_grp,
 )
-from filters.kalman import chi2_band
+from filters.gaussian import chi2_band
 from filters.ukf import AttitudeUKF, Measurement, UpdateResult
 
 __all__ = ["MultipleModelBank"]

@@ -68,7 +68,7 @@ from filters.attitude import (
     transition_matrix,
 )
 from filters.attitude._array import as_arrays
-from filters.kalman import joseph_update, mahalanobis_squared
+from filters.gaussian import joseph_update, mahalanobis_squared
 from filters.observability import Chart, RankTest, observability_gramian, observability_rank
 
 __all__ = [

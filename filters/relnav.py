@@ -58,7 +58,7 @@ from filters.hill import (
     cw_transition,
     hill_rotation,
 )
-from filters.kalman import joseph_update, kalman_gain, mahalanobis_squared
+from filters.gaussian import joseph_update, kalman_gain, mahalanobis_squared
 from filters.robust import HUBER_THRESHOLD, huber_kalman_update
 
 __all__ = [

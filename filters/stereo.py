@@ -35,7 +35,7 @@ error dynamics (Feng et al., eqs. 26–36) are
 
 with ``M = ∂ω̇/∂ω`` and ``N = ∂ω̇/∂k`` from the attitude core. The measurement Jacobian is
 ``∂p_i/∂δθ = −Âᵀ [s_i×]``, ``∂p_i/∂ρ = M`` times the projection Jacobian (Feng et al., eq. 38).
-Covariance updates use the Joseph form (:mod:`filters.kalman`). :class:`StereoEKF` runs a
+Covariance updates use the Joseph form (:mod:`filters.gaussian`). :class:`StereoEKF` runs a
 *batch* of independent filters at once (leading array dimensions), which is how the Monte
 Carlo study is vectorised.
 """
@@ -67,7 +67,7 @@ from filters.attitude import (
 )
 from filters.camera import PinholeCamera
 from filters.hill import cw_process_noise, cw_transition
-from filters.kalman import joseph_update, kalman_gain, mahalanobis_squared
+from filters.gaussian import joseph_update, kalman_gain, mahalanobis_squared
 
 __all__ = [
     "STATE_SIZE",

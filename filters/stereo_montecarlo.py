@@ -33,7 +33,7 @@ from filters.attitude import (
     validate_inertia,
 )
 from filters.hill import cw_process_noise, cw_transition
-from filters.kalman import chi2_band, mahalanobis_squared
+from filters.gaussian import chi2_band, mahalanobis_squared
 from filters.stereo import (
     STATE_SIZE,
     StereoCamera,

@@ -63,7 +63,7 @@ from filters.global_search import (
     global_search,
     refine,
 )
-from filters.kalman import chi2_band
+from filters.gaussian import chi2_band
 from filters.mmae import MultipleModelBank
 from filters.particle import AttitudeParticleFilter, Mode
 from filters.symmetry import SymmetryGroup, symmetry_group

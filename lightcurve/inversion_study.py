@@ -32,7 +32,7 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     random_quaternion,
 )
-from filters.kalman import chi2_band, mahalanobis_squared
+from filters.gaussian import chi2_band, mahalanobis_squared
 from filters.symmetry import SymmetryGroup
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.inversion import InversionResult, invert, shape_symmetry

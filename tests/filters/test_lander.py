@@ -11,7 +11,7 @@ import pytest
 from filters.attitude import quaternion_to_rotation_vector, transition_matrix
 from filters.camera import PinholeCamera
 from filters.gravity import EROS_DEGREE2, EROS_MU, EROS_REFERENCE_RADIUS, SphericalHarmonicGravity
-from filters.kalman import chi2_band, mahalanobis_squared
+from filters.gaussian import chi2_band, mahalanobis_squared
 from filters.lander import (
     DescentTrajectory,
     LanderDynamics,

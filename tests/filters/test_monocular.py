@@ -24,7 +24,7 @@ from filters.attitude import (
     random_quaternion,
     tanh_from_inertia,
 )
-from filters.kalman import joseph_update, kalman_gain
+from filters.gaussian import joseph_update, kalman_gain
 from filters.monocular import (
     FORMS,
     MonocularEKF,

@@ -14,7 +14,7 @@ from scipy.optimize import minimize
 from filters.gnss.constellation import parse_yuma
 from filters.gnss.measurements import ReceiverModel
 from filters.hill import cw_input_matrix, cw_transition, mean_motion
-from filters.kalman import joseph_update, kalman_gain
+from filters.gaussian import joseph_update, kalman_gain
 from filters.relnav import (
     ApproachScenario,
     PositionSensor,

@@ -22,7 +22,7 @@ from filters.attitude import (
 )
 from filters.camera import PinholeCamera
 from filters.hill import mean_motion
-from filters.kalman import discrete_process_noise
+from filters.gaussian import discrete_process_noise
 from filters.stereo import (
     StereoCamera,
     StereoEKF,

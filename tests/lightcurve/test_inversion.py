@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from filters.attitude import random_quaternion
-from filters.kalman import chi2_band
+from filters.gaussian import chi2_band
 from lightcurve.inversion import InversionResult, invert, shape_symmetry
 from lightcurve.inversion_study import (
     Scenario,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from filters.kalman import (
+from filters.gaussian import (
     chi2_band,
     discrete_process_noise,
     joseph_update,

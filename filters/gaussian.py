@@ -1,9 +1,9 @@
-"""Kalman-filter building blocks shared by the EKFs and UKFs of this package.
+"""Gaussian estimation algebra shared by the EKFs and UKFs of this package.
 
-Small functions over numpy arrays: the gain, the Joseph-form covariance update, the
-normalised estimation/innovation errors and their chi-square consistency bands, and the
-discretisation of continuous process noise. The filters (``monocular``, ``stereo``,
-``relnav``, ``planner``, ``ukf``) call these rather than re-deriving them.
+Small functions over numpy arrays: the Kalman gain, the Joseph-form covariance update, the
+normalised estimation/innovation errors (squared Mahalanobis distances) and their chi-square
+consistency bands, and the discretisation of continuous process noise. The filters
+(``navigation``, ``planning``, ``ukf``, ``mmae``) call these rather than re-deriving them.
 """
 
 from __future__ import annotations
