@@ -38,7 +38,7 @@ from filters.attitude import (
     quaternion_multiply,
     rotation_vector_to_quaternion,
 )
-from filters.attitude._array import as_arrays
+from filters.attitude.arrays import as_arrays
 from filters.attitude.kinematics import cross_matrix
 from filters.camera import PinholeCamera
 from filters.features import FeatureTracks

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from array_api_compat import device as array_device
 
-from filters.attitude._array import as_arrays
+from filters.attitude.arrays import as_arrays
 
 __all__ = [
     "EROS_DEGREE2",

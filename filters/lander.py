@@ -45,7 +45,7 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     rotation_vector_to_quaternion,
 )
-from filters.attitude._array import matvec
+from filters.attitude.arrays import matvec
 from filters.camera import PinholeCamera
 from filters.gaussian import joseph_update, kalman_gain
 from filters.gravity import SphericalHarmonicGravity

@@ -67,7 +67,7 @@ from filters.attitude import (
     torque_free_derivative,
     transition_matrix,
 )
-from filters.attitude._array import as_arrays
+from filters.attitude.arrays import as_arrays
 from filters.gaussian import joseph_update, mahalanobis_squared
 from filters.observability import Chart, RankTest, observability_gramian, observability_rank
 

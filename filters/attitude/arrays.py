@@ -4,6 +4,11 @@ Every function of the attitude core accepts numpy arrays, torch tensors or array
 (lists, scalars). When any argument is a torch tensor, the others are converted to tensors of
 its dtype and device and the result is a tensor; otherwise everything is a numpy array
 (float64 unless a float32 array was given).
+
+This module is public: code outside the attitude core that wants the same numpy/torch
+behaviour (the camera, gravity and epipolar models of :mod:`filters.navigation`, the
+geometry of :mod:`lightcurve.geometry`) calls :func:`as_arrays` at its entry and
+:func:`matvec` / :func:`cross` inside, instead of re-implementing the dispatch.
 """
 
 from __future__ import annotations
