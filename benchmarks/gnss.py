@@ -13,7 +13,7 @@ the measured figures:
 * time to first fix (mean, median, 99th percentile, max);
 * per-axis RMS (target Hill frame: radial, along-track, cross-track) of the snapshot fixed
   and code-only solutions, of the time-differenced carrier-phase velocity, and of the
-  navigation filter (``filters.relnav``) fed with the best and with code-only fixes over
+  navigation filter (``filters.navigation.relnav``) fed with the best and with code-only fixes over
   ``t ≥ 60 s``;
 * satellites in common view, wall time and the machine.
 

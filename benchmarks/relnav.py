@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._machine import machine_info
-from filters.relnav import ApproachScenario, simulate_approach
+from filters.navigation.relnav import ApproachScenario, simulate_approach
 from lightcurve.atomic import atomic_write_json
 from lightcurve.scenarios.relnav import load_relnav_scenario
 

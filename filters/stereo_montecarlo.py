@@ -3,7 +3,7 @@
 One call simulates ``runs`` independent truths and filters *at once* (every array has a
 leading run dimension): the target's relative attitude and rate with random disturbance
 torques (RK4 sub-steps), the centre-of-mass motion with random accelerations (exact CW
-discretisation), noisy stereo images, and the batched :class:`filters.stereo.StereoEKF`.
+discretisation), noisy stereo images, and the batched :class:`filters.navigation.stereo.StereoEKF`.
 
 Figures of merit (Feng et al., eqs. 40–41), over the epochs of the final ``window``:
 
@@ -32,9 +32,9 @@ from filters.attitude import (
     tanh_from_inertia,
     validate_inertia,
 )
-from filters.hill import cw_process_noise, cw_transition
 from filters.gaussian import chi2_band, mahalanobis_squared
-from filters.stereo import (
+from filters.navigation.hill import cw_process_noise, cw_transition
+from filters.navigation.stereo import (
     STATE_SIZE,
     StereoCamera,
     StereoEKF,

@@ -54,6 +54,7 @@ from filters.attitude import (
     rotation_vector_to_quaternion,
     tanh_from_inertia,
 )
+from filters.gaussian import chi2_band
 from filters.global_search import (
     BatchProblem,
     Candidates,
@@ -63,7 +64,6 @@ from filters.global_search import (
     global_search,
     refine,
 )
-from filters.gaussian import chi2_band
 from filters.mmae import MultipleModelBank
 from filters.particle import AttitudeParticleFilter, Mode
 from filters.symmetry import SymmetryGroup, symmetry_group

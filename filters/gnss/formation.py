@@ -9,7 +9,7 @@ phase ``α``; simulates both receivers (:mod:`filters.gnss.measurements`) and ru
 :class:`filters.gnss.relative.RelativeGnssSolver`. Scores: time to first fix, whether any
 fixed epoch has wrong integers, epoch-wise (snapshot) errors of the fixed and code-only
 solutions in the target's Hill frame, the velocity error, and the errors of the
-navigation filter of :mod:`filters.relnav` fed with the fixes (fixed when available,
+navigation filter of :mod:`filters.navigation.relnav` fed with the fixes (fixed when available,
 otherwise code-only) and, separately, with code-only fixes.
 """
 
@@ -29,7 +29,7 @@ from filters.gnss.relative import (
     RelativeGnssSolver,
     fixed_ambiguities_correct,
 )
-from filters.hill import EARTH_RADIUS, circular_orbit, hill_rotation, mean_motion
+from filters.navigation.hill import EARTH_RADIUS, circular_orbit, hill_rotation, mean_motion
 
 __all__ = ["FormationResult", "FormationScenario", "simulate_formation"]
 
@@ -154,7 +154,9 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
     -------
     FormationResult
     """
-    from filters.relnav import RelativeNavigationFilter  # the navigator builds on this package
+    from filters.navigation.relnav import (
+        RelativeNavigationFilter,  # the navigator builds on this package
+    )
 
     clock = time.perf_counter()
     sc = scenario

@@ -23,10 +23,10 @@ from filters.attitude import (
     propagate,
     validate_inertia,
 )
-from filters.camera import PinholeCamera
-from filters.epipolar import attitude_sequence
-from filters.features import simulate_tracks
-from filters.monocular import (
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.epipolar import attitude_sequence
+from filters.navigation.features import simulate_tracks
+from filters.navigation.monocular import (
     FilterHistory,
     InertiaForm,
     MonocularEKF,
@@ -36,7 +36,7 @@ from filters.monocular import (
     reference_frame_truth,
     trajectory_information,
 )
-from filters.observability import information_sigmas
+from filters.planning.observability import information_sigmas
 from lightcurve.atomic import atomic_path
 from lightcurve.scenarios import ScenarioError, TomlTable, load_toml
 

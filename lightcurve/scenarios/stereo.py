@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 
 from filters.attitude import euler321_to_quaternion
-from filters.camera import PinholeCamera
-from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
-from filters.stereo import StereoCamera
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.hill import EARTH_MU, EARTH_RADIUS, mean_motion
+from filters.navigation.stereo import StereoCamera
 from filters.stereo_montecarlo import StereoScenario
 from lightcurve.scenarios import ScenarioError, load_toml
 

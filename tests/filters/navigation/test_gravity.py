@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import lpmv
 
-from filters.gravity import (
+from filters.navigation.gravity import (
     EROS_DEGREE2,
     EROS_MU,
     EROS_REFERENCE_RADIUS,

@@ -2,7 +2,7 @@
 
 The extended Kalman filter of Deng et al. 2024 (eqs. 24–36). The only measurement
 is the attitude of the target relative to the first camera frame, a quaternion obtained from
-image sequences (``filters.epipolar``); the filter estimates that attitude, the body rates
+image sequences (``filters.navigation.epipolar``); the filter estimates that attitude, the body rates
 and the normalised inertia tensor.
 
 State and error state
@@ -69,7 +69,12 @@ from filters.attitude import (
 )
 from filters.attitude.arrays import as_arrays
 from filters.gaussian import joseph_update, mahalanobis_squared
-from filters.observability import Chart, RankTest, observability_gramian, observability_rank
+from filters.planning.observability import (
+    Chart,
+    RankTest,
+    observability_gramian,
+    observability_rank,
+)
 
 __all__ = [
     "FORMS",

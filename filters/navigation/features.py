@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from filters.attitude import attitude_matrix
-from filters.camera import PinholeCamera
+from filters.navigation.camera import PinholeCamera
 
 __all__ = ["FeatureTracks", "camera_points", "simulate_tracks"]
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 from torch.autograd.functional import jacobian
 
-from filters.camera import PinholeCamera
+from filters.navigation.camera import PinholeCamera
 
 
 def test_fov_and_projection():

@@ -9,18 +9,25 @@ import numpy as np
 import pytest
 
 from filters.attitude import quaternion_to_rotation_vector, transition_matrix
-from filters.camera import PinholeCamera
-from filters.gravity import EROS_DEGREE2, EROS_MU, EROS_REFERENCE_RADIUS, SphericalHarmonicGravity
 from filters.gaussian import chi2_band, mahalanobis_squared
-from filters.lander import (
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.gravity import (
+    EROS_DEGREE2,
+    EROS_MU,
+    EROS_REFERENCE_RADIUS,
+    SphericalHarmonicGravity,
+)
+from filters.navigation.lander import (
     DescentTrajectory,
     LanderDynamics,
     LanderModel,
-    LandingScenario,
     LandmarkMap,
     NadirPointing,
     SiteFrame,
     anchor_pixels,
+)
+from lightcurve.studies.landing import (
+    LandingScenario,
     compare_strategies,
     draw,
     error_statistics,

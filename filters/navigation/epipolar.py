@@ -40,8 +40,8 @@ from filters.attitude import (
 )
 from filters.attitude.arrays import as_arrays
 from filters.attitude.kinematics import cross_matrix
-from filters.camera import PinholeCamera
-from filters.features import FeatureTracks
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.features import FeatureTracks
 
 __all__ = [
     "AttitudeSequence",

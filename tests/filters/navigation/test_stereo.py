@@ -20,10 +20,10 @@ from filters.attitude import (
     rotate,
     rotation_vector_to_quaternion,
 )
-from filters.camera import PinholeCamera
-from filters.hill import mean_motion
 from filters.gaussian import discrete_process_noise
-from filters.stereo import (
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.hill import mean_motion
+from filters.navigation.stereo import (
     StereoCamera,
     StereoEKF,
     _transition_and_noise,

@@ -11,11 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
+from filters.gaussian import joseph_update, kalman_gain
 from filters.gnss.constellation import parse_yuma
 from filters.gnss.measurements import ReceiverModel
-from filters.hill import cw_input_matrix, cw_transition, mean_motion
-from filters.gaussian import joseph_update, kalman_gain
-from filters.relnav import (
+from filters.navigation.hill import cw_input_matrix, cw_transition, mean_motion
+from filters.navigation.relnav import (
     ApproachScenario,
     PositionSensor,
     RelativeNavigationFilter,

@@ -17,8 +17,8 @@ from filters.attitude import (
     quaternion_from_matrix,
     rotation_vector_to_quaternion,
 )
-from filters.camera import PinholeCamera
-from filters.epipolar import (
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.epipolar import (
     EpipolarError,
     RelativePose,
     _pose_jacobian,
@@ -32,7 +32,7 @@ from filters.epipolar import (
     refine_poses,
     sampson_error,
 )
-from filters.features import FeatureTracks, camera_points, simulate_tracks
+from filters.navigation.features import FeatureTracks, camera_points, simulate_tracks
 from shapes.raycast import Occluder
 
 J_A = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])

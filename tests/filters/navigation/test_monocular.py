@@ -25,7 +25,7 @@ from filters.attitude import (
     tanh_from_inertia,
 )
 from filters.gaussian import joseph_update, kalman_gain
-from filters.monocular import (
+from filters.navigation.monocular import (
     FORMS,
     MonocularEKF,
     perturb_attitudes,

@@ -2,7 +2,7 @@
 
 The navigator of Shi, Zhang, Li, Lang & Zheng (*Relative navigation architecture for aerospace
 vehicles based on multimodal measurement*): the chaser's position and velocity relative to the
-target, ``X = [x, y, z, ẋ, ẏ, ż]`` in the target's Hill frame (:mod:`filters.hill`), are
+target, ``X = [x, y, z, ẋ, ẏ, ż]`` in the target's Hill frame (:mod:`filters.navigation.hill`), are
 estimated by one Kalman filter (eqs. 1–5):
 
 * **Propagation** with the accelerometer output as control input every IMU period
@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from filters.gaussian import joseph_update, kalman_gain, mahalanobis_squared
 from filters.gnss.constellation import Almanac, Constellation
 from filters.gnss.measurements import ReceiverModel, simulate_observations
 from filters.gnss.relative import (
@@ -51,14 +52,13 @@ from filters.gnss.relative import (
     RelativeGnssSolver,
     fixed_ambiguities_correct,
 )
-from filters.hill import (
+from filters.navigation.hill import (
     EARTH_MU,
     circular_orbit,
     cw_input_matrix,
     cw_transition,
     hill_rotation,
 )
-from filters.gaussian import joseph_update, kalman_gain, mahalanobis_squared
 from filters.robust import HUBER_THRESHOLD, huber_kalman_update
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Stereo-vision relative state and inertia estimation of a tumbling target (Feng et al.).
 
 A chaser flies a circular orbit with its camera frame ``C`` fixed in the Hill frame ``H`` of
-:mod:`filters.hill` (``v_C = M v_H``, ``M`` the camera mounting). A rectified stereo pair
+:mod:`filters.navigation.hill` (``v_C = M v_H``, ``M`` the camera mounting). A rectified stereo pair
 (focal length ``f`` in pixels, baseline ``b`` in metres, right camera at ``[b, 0, 0]_C``)
 tracks ``N`` points ``s_i`` fixed in the target's principal-axis body frame ``T``.
 
@@ -65,9 +65,9 @@ from filters.attitude import (
     rotate,
     rotation_vector_to_quaternion,
 )
-from filters.camera import PinholeCamera
-from filters.hill import cw_process_noise, cw_transition
 from filters.gaussian import joseph_update, kalman_gain, mahalanobis_squared
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.hill import cw_process_noise, cw_transition
 
 __all__ = [
     "STATE_SIZE",

@@ -11,26 +11,26 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from filters.attitude import attitude_matrix, cross_matrix, propagate_rk4, random_quaternion
-from filters.camera import PinholeCamera
-from filters.planner import (
-    FisherTrace,
+from filters.navigation.camera import PinholeCamera
+from filters.planning.information import (
     Forecast,
     FunctionModel,
-    ObservationPlanner,
-    PosteriorRollout,
     covariance_measure,
-    final_covariance_reduction,
     fisher_information,
     forecast,
+    posterior_covariance,
+)
+from filters.planning.keyframes import select_keyframes
+from filters.planning.schedule import (
+    final_covariance_reduction,
     greedy_schedule,
     plan_final_covariance,
     plan_forecast,
     plan_schedule,
-    posterior_covariance,
     propagate_schedule,
-    select_keyframes,
     uniform_steps,
 )
+from filters.planning.sequential import FisherTrace, ObservationPlanner, PosteriorRollout
 
 DT = 1.0
 
@@ -359,9 +359,9 @@ def test_monocular_keyframes_drive_the_real_ekf():
         propagate,
         quaternion_multiply,
     )
-    from filters.features import simulate_tracks
-    from filters.monocular import MonocularEKF, perturb_attitudes
-    from filters.planner import MonocularKeyframeModel, monocular_keyframes
+    from filters.navigation.features import simulate_tracks
+    from filters.navigation.monocular import MonocularEKF, perturb_attitudes
+    from filters.planning.keyframes import MonocularKeyframeModel, monocular_keyframes
 
     inertia = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])  # scenario A
     times = np.arange(121.0)

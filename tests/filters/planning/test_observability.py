@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from filters.attitude import normalized_from_inertia, propagate
-from filters.monocular import FORMS, observability_at, trajectory_information
-from filters.observability import (
+from filters.navigation.monocular import FORMS, observability_at, trajectory_information
+from filters.planning.observability import (
     Chart,
     canonical_basis,
     fisher_information,

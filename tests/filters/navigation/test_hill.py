@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
 
-from filters.hill import (
+from filters.navigation.hill import (
     cw_input_matrix,
     cw_matrix,
     cw_process_noise,
