@@ -10,4 +10,6 @@ Modules
 -------
 landing
     Observation planning for small-body landing (Li et al. 2024): ``lightcurve plan``.
+stereo
+    Stereo relative-state and inertia estimation (Feng et al.): ``lightcurve stereo``.
 """

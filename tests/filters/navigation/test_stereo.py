@@ -31,7 +31,7 @@ from filters.navigation.stereo import (
     relative_attitude_derivative,
     rotational_error_matrix,
 )
-from filters.stereo_montecarlo import StereoScenario, run_monte_carlo
+from lightcurve.studies.stereo import StereoScenario, run_monte_carlo
 
 N = mean_motion(6878.137e3)
 M_CAM = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])

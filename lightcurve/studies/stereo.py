@@ -12,6 +12,8 @@ Figures of merit (Feng et al., eqs. 40–41), over the epochs of the final ``win
 with ``e`` the attitude error angle ``2 arccos |δq4|`` (reported in degrees) or the error
 vector of ``ω``, ``k``, ``ρ`` and ``ρ̇`` (Euclidean norm), and the 14-dimensional NEES
 averaged over runs and window against the two-sided 95 % chi-square band of the run mean.
+:class:`StereoScenario` is the study's definition (read from TOML by
+:mod:`lightcurve.scenarios.stereo`); ``lightcurve stereo`` is a thin layer over this module.
 """
 
 from __future__ import annotations
