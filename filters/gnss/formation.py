@@ -154,9 +154,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
     -------
     FormationResult
     """
-    from filters.navigation.relnav import (
-        RelativeNavigationFilter,  # the navigator builds on this package
-    )
+    from filters.navigation.relnav import RelativeNavigationFilter
 
     clock = time.perf_counter()
     sc = scenario

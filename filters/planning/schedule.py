@@ -220,7 +220,7 @@ def greedy_schedule(
         Most exchange passes (stops earlier when a pass changes nothing). On ten random
         4-of-12 problems greedy alone is 1.09× the exhaustive optimum on average (worst
         1.47×), with one pass 1.02× (worst 1.16×, optimal in 8)
-        (``tests/filters/test_planner.py``).
+        (``tests/filters/planning/test_planner.py``).
 
     Returns
     -------

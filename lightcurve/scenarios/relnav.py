@@ -1,7 +1,7 @@
 """Relative-navigation approach scenario files (Shi et al., multimodal relative navigation).
 
-A TOML file becomes a :class:`filters.navigation.relnav.ApproachScenario`; sensor tables of
-``kind = "rgnss"`` become :class:`filters.navigation.relnav.RgnssSensor` with their almanac read from
+A TOML file becomes a :class:`lightcurve.studies.relnav.ApproachScenario`; sensor tables of
+``kind = "rgnss"`` become :class:`lightcurve.studies.relnav.RgnssSensor` with their almanac read from
 the file they name (relative to the scenario file).
 
 The ``lightcurve relnav`` command is a thin layer over this module.
@@ -18,8 +18,8 @@ from filters.gnss.constellation import AlmanacError, parse_yuma
 from filters.gnss.measurements import ReceiverModel
 from filters.gnss.relative import RelativeGnssConfig
 from filters.navigation.hill import EARTH_MU, EARTH_RADIUS, mean_motion
-from filters.navigation.relnav import ApproachScenario, PositionSensor, RgnssSensor
 from lightcurve.scenarios import ScenarioError, TomlTable, load_toml
+from lightcurve.studies.relnav import ApproachScenario, PositionSensor, RgnssSensor
 
 _AXES = ("x", "y", "z", "vx", "vy", "vz")
 

@@ -10,6 +10,8 @@ Modules
 -------
 landing
     Observation planning for small-body landing (Li et al. 2024): ``lightcurve plan``.
+relnav
+    Multi-mode relative navigation of an approach (Shi et al.): ``lightcurve relnav``.
 stereo
     Stereo relative-state and inertia estimation (Feng et al.): ``lightcurve stereo``.
 """

@@ -15,15 +15,15 @@ from filters.gaussian import joseph_update, kalman_gain
 from filters.gnss.constellation import parse_yuma
 from filters.gnss.measurements import ReceiverModel
 from filters.navigation.hill import cw_input_matrix, cw_transition, mean_motion
-from filters.navigation.relnav import (
+from filters.navigation.relnav import RelativeNavigationFilter
+from filters.robust import huber_kalman_update, huber_loss, huber_weights
+from lightcurve.studies.relnav import (
     ApproachScenario,
     PositionSensor,
-    RelativeNavigationFilter,
     RgnssSensor,
     reference_trajectory,
     simulate_approach,
 )
-from filters.robust import huber_kalman_update, huber_loss, huber_weights
 
 N = mean_motion(6878.137e3)
 H = np.hstack([np.eye(3), np.zeros((3, 3))])
