@@ -10,6 +10,9 @@ Modules
 -------
 landing
     Observation planning for small-body landing (Li et al. 2024): ``lightcurve plan``.
+monocular
+    Attitude, rate and inertia of a tumbling target from images (Deng et al. 2024):
+    ``lightcurve monocular``.
 relnav
     Multi-mode relative navigation of an approach (Shi et al.): ``lightcurve relnav``.
 stereo

@@ -32,11 +32,8 @@ from filters.navigation.monocular import (
     reference_frame_truth,
     state_derivative,
 )
-from lightcurve.scenarios.monocular import (
-    convergence,
-    load_monocular_scenario,
-    run_study,
-)
+from lightcurve.scenarios.monocular import load_monocular_scenario
+from lightcurve.studies.monocular import convergence, run_study
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "scenarios"
 J_A = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
