@@ -1,7 +1,8 @@
 """Photometric observation scheduling: which epochs of a light curve carry attitude information.
 
 The observation planner of :mod:`filters.planning` (Li et al. 2024) applied to the light curve
-of a tumbling object: :class:`PhotometricPlanningModel` is a :class:`~filters.planning.information.PlanningModel`
+of a tumbling object: :class:`PhotometricPlanningModel` is a
+:class:`~filters.planning.information.PlanningModel`
 whose observation is one magnitude at a candidate epoch of a geometry table and whose error
 state is the attitude-error + rate state of the attitude core's EKFs,
 
@@ -329,7 +330,8 @@ class ScheduleComparison:
     taken : dict of str to (B, L) bool arrays
         ``"planned"`` (:func:`~filters.planning.schedule.greedy_schedule`), ``"uniform"``,
         ``"largest_information"`` (:func:`largest_information_steps`) and, if asked,
-        ``"rollout"`` (the sequential :class:`~filters.planning.sequential.PosteriorRollout` planner).
+        ``"rollout"`` (the sequential
+        :class:`~filters.planning.sequential.PosteriorRollout` planner).
     covariances : dict of str to (L, B, n, n) arrays
         Covariance after each step under each schedule (the same recursion for all).
     forecast : Forecast

@@ -403,7 +403,8 @@ class LandmarkMap:
 class LanderModel:
     """Lander navigation model: propagation, landmark choice and measurement Jacobians.
 
-    Implements :class:`filters.planning.information.PlanningModel` on means ``x = [r, ṙ, ê]`` ``(B, 10)``:
+    Implements :class:`filters.planning.information.PlanningModel` on means
+    ``x = [r, ṙ, ê]`` ``(B, 10)``:
     position and velocity in ``L`` and the attitude correction quaternion ``ê`` with
     ``q̂ = ê ⊗ q_cmd(t)`` (the commanded attitude corrected by the estimate).
 

@@ -2,8 +2,8 @@
 
 The extended Kalman filter of Deng et al. 2024 (eqs. 24–36). The only measurement
 is the attitude of the target relative to the first camera frame, a quaternion obtained from
-image sequences (``filters.navigation.epipolar``); the filter estimates that attitude, the body rates
-and the normalised inertia tensor.
+image sequences (``filters.navigation.epipolar``); the filter estimates that attitude, the
+body rates and the normalised inertia tensor.
 
 State and error state
 ---------------------

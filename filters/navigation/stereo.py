@@ -246,7 +246,8 @@ def _transition_and_noise(
     evaluated with 8×8 products only. ``scipy.linalg.expm`` of the 16×16 Van Loan block
     costs ~0.35 ms per run and step; this costs ~0.01 ms. The error dynamics are slow
     (``|ω| Δt`` ≲ 0.1 rad), so eight terms leave a truncation error below ``1e-12``
-    relative; ``tests/filters/navigation/test_stereo.py`` checks it against the exact discretisation.
+    relative; ``tests/filters/navigation/test_stereo.py`` checks it against the exact
+    discretisation.
     """
     fdt = f * dt
     term = np.broadcast_to(np.eye(f.shape[-1]), f.shape)

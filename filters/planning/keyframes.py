@@ -77,8 +77,10 @@ def select_keyframes(
 
 @dataclass(frozen=True)
 class MonocularKeyframeModel:
-    """The monocular EKF of Deng et al. 2024 (:class:`filters.navigation.monocular.MonocularEKF`) as a
-    :class:`PlanningModel` over a sequence of frames.
+    """The monocular EKF of Deng et al. 2024 as a planning model over a sequence of frames.
+
+    :class:`filters.navigation.monocular.MonocularEKF` as a
+    :class:`~filters.planning.information.PlanningModel`.
 
     Means are the EKF's nominal states ``[q, ω, p]``; step ``k`` is frame ``times[k]``. The
     prediction is the EKF's (RK4 with the inertia fixed over the step, ``Φ = exp(C ΔT)``,
@@ -113,8 +115,8 @@ class MonocularKeyframeModel:
             Frame times (s), the first being the EKF's current time.
         sigma : (K,) array, optional
             One-sigma rotation error per axis of each frame's attitude (rad), e.g.
-            :attr:`filters.navigation.epipolar.AttitudeSequence.sigma`; ``R_k = (σ_k/2)² I₃``. Default:
-            the EKF's ``R`` for every frame.
+            :attr:`filters.navigation.epipolar.AttitudeSequence.sigma`;
+            ``R_k = (σ_k/2)² I₃``. Default: the EKF's ``R`` for every frame.
         """
         times = np.asarray(times, dtype=float)
         if sigma is None:

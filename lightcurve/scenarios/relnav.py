@@ -1,8 +1,8 @@
 """Relative-navigation approach scenario files (Shi et al., multimodal relative navigation).
 
 A TOML file becomes a :class:`lightcurve.studies.relnav.ApproachScenario`; sensor tables of
-``kind = "rgnss"`` become :class:`lightcurve.studies.relnav.RgnssSensor` with their almanac read from
-the file they name (relative to the scenario file).
+``kind = "rgnss"`` become :class:`lightcurve.studies.relnav.RgnssSensor` with their almanac
+read from the file they name (relative to the scenario file).
 
 The ``lightcurve relnav`` command is a thin layer over this module.
 """

@@ -158,8 +158,8 @@ def navigate(
     """Run the navigation filter on every drawn descent (Li et al. 2024, fig. 2).
 
     The first image is taken at step 0. Without a planner an image is taken at every step;
-    with an :class:`filters.planning.sequential.ObservationPlanner` the next image step is planned after
-    each update and the filter only propagates in between.
+    with an :class:`filters.planning.sequential.ObservationPlanner` the next image step is
+    planned after each update and the filter only propagates in between.
 
     Parameters
     ----------
