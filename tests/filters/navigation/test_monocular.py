@@ -35,7 +35,7 @@ from filters.navigation.monocular import (
 from lightcurve.scenarios.monocular import load_monocular_scenario
 from lightcurve.studies.monocular import convergence, run_study
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[3] / "data" / "scenarios"
 J_A = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 
 rates = st.lists(st.floats(-0.3, 0.3), min_size=3, max_size=3)

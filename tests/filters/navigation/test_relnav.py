@@ -218,7 +218,7 @@ def test_bad_scenarios_and_options():
 
 
 # --------------------------------------------------------------------------- relative GNSS modes
-ALMANAC = Path(__file__).resolve().parents[2] / "data" / "gnss" / "gps_week147_yuma.alm"
+ALMANAC = Path(__file__).resolve().parents[3] / "data" / "gnss" / "gps_week147_yuma.alm"
 
 
 def rgnss_approach(mode: str, duration: float = 180.0, **rgnss) -> ApproachScenario:
