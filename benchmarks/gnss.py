@@ -14,7 +14,7 @@ the measured figures:
 * per-axis RMS (target Hill frame: radial, along-track, cross-track) of the epoch-wise fixed,
   raw code (snapshot) and carrier-smoothed code solutions (all epochs, and ``t ≥ 60 s``),
   of the time-differenced carrier-phase velocity, and of the navigation filter
-  (``filters.relnav``) over ``t ≥ 60 s`` fed with the navigator's fixes (fixed, else
+  (``filters.navigation.relnav``) over ``t ≥ 60 s`` fed with the navigator's fixes (fixed, else
   carrier-smoothed), with raw code fixes and with carrier-smoothed code fixes, and their
   mean position NEES (3 for a consistent filter);
 * for the two code solutions: the predicted RMS from their covariances, the RMS of the errors

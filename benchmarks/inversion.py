@@ -10,7 +10,7 @@ particle-filter speed study. Prints JSON.
     python -m benchmarks.inversion main-job [--files box_wing_tumbling,...]  # README job
     python -m benchmarks.inversion propagation                         # RK4 kernels
 
-Scenarios (:mod:`lightcurve.inversion_study`): a geostationary object seen from Mount
+Scenarios (:mod:`benchmarks.inversion_study`): a geostationary object seen from Mount
 Lemmon on 2024-06-21 from 04:00 UTC, 1 Hz, Gaussian noise 0.05 mag, 20 min; run ``i``
 draws its truth and prior from ``numpy.random.default_rng([seed, i])``. ``--out FILE``
 also writes the JSON (atomically).
@@ -28,10 +28,7 @@ import numpy as np
 import torch
 
 from benchmarks._machine import machine_info
-from filters.attitude import quaternion_multiply, rotation_vector_to_quaternion
-from filters.particle import AttitudeParticleFilter
-from lightcurve.atomic import atomic_write_json, json_ready
-from lightcurve.inversion_study import (
+from benchmarks.inversion_study import (
     Scenario,
     draw_truth,
     mmae_study,
@@ -39,6 +36,9 @@ from lightcurve.inversion_study import (
     simulate_run,
     ukf_study,
 )
+from filters.attitude import quaternion_multiply, rotation_vector_to_quaternion
+from filters.particle import AttitudeParticleFilter
+from lightcurve.atomic import atomic_write_json, json_ready
 from lightcurve.measurement import PhotometricModel
 from shapes import get_library
 
@@ -118,9 +118,9 @@ def speed(particles: list[int], updates: int, seed: int, components: int = 12) -
 def main_job(files: list[str]) -> dict:
     """The README main job file by file in this process (one torch thread): CPU and wall
     time, shape, probability and the errors against the files' truth columns."""
+    from benchmarks.inversion_study import final_errors
     from lightcurve import io
     from lightcurve.inversion import invert, shape_symmetry
-    from lightcurve.inversion_study import final_errors
 
     library = get_library()
     shapes = {

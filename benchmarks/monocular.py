@@ -33,11 +33,11 @@ import numpy as np
 
 from benchmarks._machine import machine_info
 from filters.attitude import attitude_angle
-from filters.monocular import FORMS, MonocularEKF, observability_at
+from filters.navigation.monocular import FORMS, MonocularEKF, observability_at
 from lightcurve.atomic import atomic_write_json
-from lightcurve.scenarios.monocular import (
+from lightcurve.scenarios.monocular import load_monocular_scenario
+from lightcurve.studies.monocular import (
     convergence,
-    load_monocular_scenario,
     monte_carlo_table,
     run_study,
     summarize,

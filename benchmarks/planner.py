@@ -37,8 +37,8 @@ import numpy as np
 import shapes
 from benchmarks._machine import machine_info
 from filters.attitude import quaternion_multiply, random_quaternion, rotation_vector_to_quaternion
-from filters.lander import STRATEGIES
-from filters.planner import covariance_measure, forecast, propagate_schedule
+from filters.planning.information import covariance_measure, forecast
+from filters.planning.schedule import propagate_schedule
 from lightcurve import io
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.observations import Observations
@@ -48,7 +48,8 @@ from lightcurve.photometric_planning import (
     ScheduleComparison,
     compare_schedules,
 )
-from lightcurve.scenarios.landing import Study, load_scenario, run_study, summarize
+from lightcurve.scenarios.landing import load_scenario
+from lightcurve.studies.landing import STRATEGIES, Study, run_study, summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "data" / "scenarios" / "eros_landing.toml"

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._machine import machine_info
-from filters.relnav import ApproachScenario, simulate_approach
 from lightcurve.atomic import atomic_write_json
 from lightcurve.scenarios.relnav import load_relnav_scenario
+from lightcurve.studies.relnav import ApproachScenario, simulate_approach
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "data" / "scenarios"
 SCENARIO = SCENARIOS / "relnav_approach.toml"

@@ -22,9 +22,9 @@ import time
 from pathlib import Path
 
 from benchmarks._machine import machine_info
-from filters.stereo_montecarlo import QUANTITIES, StereoScenario, run_monte_carlo
 from lightcurve.atomic import atomic_path, atomic_write_json
 from lightcurve.scenarios.stereo import load_stereo_scenario
+from lightcurve.studies.stereo import QUANTITIES, StereoScenario, run_monte_carlo
 
 NOMINAL = Path(__file__).resolve().parents[1] / "data" / "scenarios" / "stereo_nominal.toml"
 

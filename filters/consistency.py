@@ -15,7 +15,7 @@ from collections import deque
 
 import numpy as np
 
-from filters.kalman import chi2_band
+from filters.gaussian import chi2_band
 
 __all__ = ["NISWindow"]
 

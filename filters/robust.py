@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.kalman import joseph_update, kalman_gain
+from filters.gaussian import joseph_update, kalman_gain
 
 __all__ = ["HUBER_THRESHOLD", "RobustUpdate", "huber_kalman_update", "huber_loss", "huber_weights"]
 

@@ -1,8 +1,10 @@
-"""Atomic file output: write to a temporary file in the target folder, then rename.
+"""Atomic result files of :mod:`lightcurve`: text, JSON and tables.
 
-An interrupted run therefore never leaves a half-written result behind: the target either
-has its old content or the complete new one. Every writer in :mod:`lightcurve` goes
-through these functions.
+Built on the project's one atomic writer, :func:`shapes.files.atomic_path` (temporary file
+in the target folder, ``fsync``, ``os.replace``), which this module re-exports with
+:func:`~shapes.files.output_folder` as part of its interface. An interrupted run therefore
+never leaves a half-written result behind: the target either has its old content or the
+complete new one. Every writer in :mod:`lightcurve` goes through these functions.
 """
 
 from __future__ import annotations
@@ -10,14 +12,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from shapes.files import atomic_path, output_folder
 
 __all__ = [
     "atomic_path",
@@ -27,70 +28,6 @@ __all__ = [
     "json_ready",
     "output_folder",
 ]
-
-
-@contextmanager
-def atomic_path(target: str | os.PathLike[str], suffix: str = "") -> Iterator[Path]:
-    """Yield a temporary path beside ``target``; on success rename it onto ``target``.
-
-    Parameters
-    ----------
-    target : path-like
-        Final file path; its parent folder is created if needed.
-    suffix : str
-        Suffix of the temporary file (some writers infer the format from it).
-
-    Yields
-    ------
-    pathlib.Path
-        Where to write. Removed if the block raises.
-    """
-    target = Path(target)
-    output_folder(target.parent)
-    if target.is_dir():
-        raise IsADirectoryError(f"cannot write {target}: it is a folder")
-    try:
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{target.name}.", suffix=suffix + ".tmp", dir=target.parent
-        )
-    except OSError as exc:  # unwritable folder, read-only or special file system
-        raise OSError(f"cannot write {target}: {exc.strerror or exc}") from None
-    os.close(fd)
-    tmp_path = Path(tmp)
-    umask = os.umask(0)
-    os.umask(umask)
-    tmp_path.chmod(0o666 & ~umask)  # mkstemp creates 0600; give the file normal permissions
-    try:
-        yield tmp_path
-        with open(tmp_path, "rb") as handle:
-            os.fsync(handle.fileno())
-        os.replace(tmp_path, target)
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
-
-
-def output_folder(folder: str | os.PathLike[str]) -> Path:
-    """Create the output folder ``folder`` (and its parents), with a one-line error naming
-    it when a file stands in the way or the location is not writable."""
-    folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OSError(
-            f"cannot create the output folder {folder}: {_blocking_file(folder)} is a file"
-        ) from None
-    except OSError as exc:
-        raise OSError(f"cannot create the output folder {folder}: {exc.strerror or exc}") from None
-    return folder
-
-
-def _blocking_file(folder: Path) -> Path:
-    """The first existing non-folder on the way to ``folder`` (what stops ``mkdir``)."""
-    for candidate in (*reversed(folder.parents), folder):
-        if candidate.exists() and not candidate.is_dir():
-            return candidate
-    return folder
 
 
 def atomic_write_text(target: str | os.PathLike[str], text: str) -> None:

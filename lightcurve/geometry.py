@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from filters.attitude import quaternion_multiply, rotate
-from filters.attitude._array import as_arrays, cross
+from filters.attitude.arrays import as_arrays, cross
 
 __all__ = [
     "AU_M",

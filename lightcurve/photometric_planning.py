@@ -1,7 +1,8 @@
 """Photometric observation scheduling: which epochs of a light curve carry attitude information.
 
-The observation planner of :mod:`filters.planner` (Li et al. 2024) applied to the light curve
-of a tumbling object: :class:`PhotometricPlanningModel` is a :class:`~filters.planner.PlanningModel`
+The observation planner of :mod:`filters.planning` (Li et al. 2024) applied to the light curve
+of a tumbling object: :class:`PhotometricPlanningModel` is a
+:class:`~filters.planning.information.PlanningModel`
 whose observation is one magnitude at a candidate epoch of a geometry table and whose error
 state is the attitude-error + rate state of the attitude core's EKFs,
 
@@ -19,9 +20,9 @@ epoch only; the rates enter through the dynamics). The Fisher information of the
 ``F_k = h_kᵀ h_k / σ_k²`` (Li et al. 2024, eq. 20), a rank-one matrix: one magnitude never
 bounds the attitude alone, so Li et al.'s ``min tr F⁻¹`` does not apply and a budget of
 epochs is chosen for the smallest final attitude covariance
-(:func:`~filters.planner.greedy_schedule` with an exchange pass, via
-:func:`~filters.planner.plan_final_covariance`; the sequential
-:class:`~filters.planner.PosteriorRollout` on request).
+(:func:`~filters.planning.schedule.greedy_schedule` with an exchange pass, via
+:func:`~filters.planning.schedule.plan_final_covariance`; the sequential
+:class:`~filters.planning.sequential.PosteriorRollout` on request).
 Dark epochs (no lit facet visible, infinite magnitude) carry no information.
 
 Dynamics: torque-free motion propagated with the attitude core's RK4
@@ -64,14 +65,8 @@ from filters.attitude import (
     torque_free_derivative,
     transition_matrix,
 )
-from filters.planner import (
-    Forecast,
-    covariance_measure,
-    forecast,
-    plan_final_covariance,
-    propagate_schedule,
-    uniform_steps,
-)
+from filters.planning.information import Forecast, covariance_measure, forecast
+from filters.planning.schedule import plan_final_covariance, propagate_schedule, uniform_steps
 from lightcurve.observations import Observations
 from lightcurve.render import Renderer
 from shapes import FacetModel
@@ -333,9 +328,10 @@ class ScheduleComparison:
     budget : int
         Epochs observed among the candidate steps ``1 … L``.
     taken : dict of str to (B, L) bool arrays
-        ``"planned"`` (:func:`~filters.planner.greedy_schedule`), ``"uniform"``,
+        ``"planned"`` (:func:`~filters.planning.schedule.greedy_schedule`), ``"uniform"``,
         ``"largest_information"`` (:func:`largest_information_steps`) and, if asked,
-        ``"rollout"`` (the sequential :class:`~filters.planner.PosteriorRollout` planner).
+        ``"rollout"`` (the sequential
+        :class:`~filters.planning.sequential.PosteriorRollout` planner).
     covariances : dict of str to (L, B, n, n) arrays
         Covariance after each step under each schedule (the same recursion for all).
     forecast : Forecast

@@ -159,7 +159,7 @@ def pole_vector(lambda_rad: Any, beta_rad: Any) -> Any:
     -------
     (..., 3) array
     """
-    from filters.attitude._array import as_arrays
+    from filters.attitude.arrays import as_arrays
 
     xp, (lam, beta) = as_arrays(lambda_rad, beta_rad)
     cb = xp.cos(beta)
@@ -179,7 +179,7 @@ def pole_quaternion(lambda_rad: Any, beta_rad: Any) -> Any:
     (..., 4) array
     """
     from filters.attitude import axis_angle_to_quaternion, quaternion_multiply
-    from filters.attitude._array import as_arrays
+    from filters.attitude.arrays import as_arrays
 
     xp, (lam, beta) = as_arrays(lambda_rad, beta_rad)
     q_lambda = axis_angle_to_quaternion(xp.asarray(_Z, dtype=lam.dtype), lam)
@@ -246,7 +246,7 @@ def spin_attitude(lambda_rad: Any, beta_rad: Any, phi: Any) -> Any:
     (..., 4) array
     """
     from filters.attitude import axis_angle_to_quaternion, quaternion_multiply
-    from filters.attitude._array import as_arrays
+    from filters.attitude.arrays import as_arrays
 
     xp, (lam, beta, phi) = as_arrays(lambda_rad, beta_rad, phi)
     q_phi = axis_angle_to_quaternion(xp.asarray(_Z, dtype=phi.dtype), phi)

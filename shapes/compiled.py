@@ -15,7 +15,6 @@ import dataclasses
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -23,9 +22,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from shapes.material import Material
-
-if TYPE_CHECKING:
-    from shapes.visibility import VisibilityTable
+from shapes.protocols import FacetVisibility
 
 __all__ = ["DEFAULT_ANGLE_TOLERANCE", "CompiledFacets", "compile_facets", "facet_tangents"]
 
@@ -80,7 +77,7 @@ class CompiledFacets:
     angle_tolerance: float
     vertices: np.ndarray
     faces: np.ndarray
-    visibility: VisibilityTable | None = None
+    visibility: FacetVisibility | None = None
 
     def __len__(self) -> int:
         return len(self.areas)
@@ -98,7 +95,7 @@ class CompiledFacets:
         digest.update(repr(float(self.angle_tolerance)).encode())
         return digest.hexdigest()
 
-    def with_visibility(self, table: VisibilityTable | None) -> CompiledFacets:
+    def with_visibility(self, table: FacetVisibility | None) -> CompiledFacets:
         """Return a copy carrying ``table`` (checked to fit these facets)."""
         if table is not None:
             table.check_fits(self)

@@ -20,7 +20,7 @@ from shapes import mass, validation
 from shapes.compiled import DEFAULT_ANGLE_TOLERANCE, CompiledFacets, compile_facets
 from shapes.errors import ShapeError
 from shapes.material import Material
-from shapes.visibility import VisibilityTable
+from shapes.protocols import FacetVisibility
 
 __all__ = ["DEFAULT_MATERIAL", "FacetModel", "inertia_from_components"]
 
@@ -121,7 +121,7 @@ class FacetModel:
         inertia: Any = "auto",
         mass: float | None = None,
         center_of_mass: Any = None,
-        visibility: VisibilityTable | None = None,
+        visibility: FacetVisibility | None = None,
     ) -> None:
         self.vertices, self.faces = validation.check_arrays(vertices, faces, name)
         self.unit = validation.check_unit(unit)
@@ -400,7 +400,7 @@ class FacetModel:
         merged.update(materials)
         return self.replace(materials=merged)
 
-    def with_visibility(self, table: VisibilityTable | None) -> FacetModel:
+    def with_visibility(self, table: FacetVisibility | None) -> FacetModel:
         """A copy carrying a visibility table (checked against the compiled facets)."""
         if table is not None:
             table.check_fits(self.compiled())

@@ -8,15 +8,13 @@ enforces array shapes, finite coordinates and a known unit.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import trimesh
 
 from shapes.errors import ShapeError
-
-if TYPE_CHECKING:
-    from shapes.model import FacetModel
+from shapes.protocols import FacetMesh
 
 __all__ = [
     "DEFAULT_MAX_FACETS",
@@ -75,14 +73,14 @@ def check_arrays(vertices: Any, faces: Any, where: str = "mesh") -> tuple[np.nda
     return v, f
 
 
-def check_degenerate(model: FacetModel) -> None:
+def check_degenerate(model: FacetMesh) -> None:
     """Raise if any facet has (nearly) zero area."""
     bad = np.flatnonzero(model.areas <= _DEGENERATE * model.scale**2)
     if len(bad):
         raise ShapeError(f"{model.name}: degenerate (zero-area) facet {_facet_list(bad)}")
 
 
-def require_solid(model: FacetModel, purpose: str = "a solid") -> None:
+def require_solid(model: FacetMesh, purpose: str = "a solid") -> None:
     """Raise unless the mesh is watertight (closed, consistently wound)."""
     if not model.is_watertight:
         _, _, counts = _undirected_edges(model.faces)
@@ -101,7 +99,7 @@ def _undirected_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return directed, inverse.reshape(-1), counts
 
 
-def _check_winding(model: FacetModel) -> None:
+def _check_winding(model: FacetMesh) -> None:
     directed, _, _ = _undirected_edges(model.faces)
     _, inverse, counts = np.unique(directed, axis=0, return_inverse=True, return_counts=True)
     facets = np.unique(np.flatnonzero(counts[inverse.reshape(-1)] > 1) // 3)
@@ -112,7 +110,7 @@ def _check_winding(model: FacetModel) -> None:
         )
 
 
-def _check_inward(model: FacetModel) -> None:
+def _check_inward(model: FacetMesh) -> None:
     """Closed connected parts must enclose positive volume (outward normals)."""
     n_facets = len(model.faces)
     parts = trimesh.graph.connected_components(
@@ -140,7 +138,7 @@ def _check_inward(model: FacetModel) -> None:
 
 
 def validate(
-    model: FacetModel,
+    model: FacetMesh,
     *,
     require_watertight: bool = False,
     max_facets: int = DEFAULT_MAX_FACETS,

@@ -17,6 +17,9 @@ propagation
     Batched RK4, adaptive DOP853 truth propagation, the closed-form axisymmetric motion.
 jacobians
     Analytic Jacobians of the dynamics for EKFs and the discrete transition matrix.
+arrays
+    ``as_arrays`` (one array kind, numpy or torch, for all arguments), ``matvec``, ``cross``:
+    the helpers every kernel above is written with, public for kernels outside the core.
 """
 
 from filters.attitude.inertia import (

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.attitude._array import as_arrays
+from filters.attitude.arrays import as_arrays
 
 __all__ = [
     "InertiaError",

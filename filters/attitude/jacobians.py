@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.attitude._array import as_arrays, cross, matvec
+from filters.attitude.arrays import as_arrays, cross, matvec
 from filters.attitude.inertia import inertia_from_normalized, inertia_from_tanh, ratios_from_tanh
 from filters.attitude.kinematics import cross_matrix, omega_matrix, xi_matrix
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from filters.attitude._array import as_arrays, cross, matvec
+from filters.attitude.arrays import as_arrays, cross, matvec
 
 __all__ = [
     "cross_matrix",

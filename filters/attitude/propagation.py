@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from filters.attitude._array import as_arrays, cross, matvec
+from filters.attitude.arrays import as_arrays, cross, matvec
 from filters.attitude.inertia import inertia_ratios, ratios_from_tanh, validate_inertia
 from filters.attitude.kinematics import quaternion_rate
 from filters.attitude.quaternion import (

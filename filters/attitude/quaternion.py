@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.attitude._array import as_arrays, cross
+from filters.attitude.arrays import as_arrays, cross
 
 __all__ = [
     "attitude_angle",

@@ -10,7 +10,7 @@ phase ``α``; simulates both receivers (:mod:`filters.gnss.measurements`) and ru
 fixed epoch has wrong integers, epoch-wise errors of the fixed, the raw code (snapshot) and
 the carrier-smoothed code solutions in the target's Hill frame with their predicted standard
 deviations, the velocity error, and the errors of the navigation filter of
-:mod:`filters.relnav` fed with the navigator's fixes (fixed when available, otherwise
+:mod:`filters.navigation.relnav` fed with the navigator's fixes (fixed when available, otherwise
 carrier-smoothed code) and, separately, with raw code and with carrier-smoothed code fixes.
 """
 
@@ -30,7 +30,7 @@ from filters.gnss.relative import (
     RelativeGnssSolver,
     fixed_ambiguities_correct,
 )
-from filters.hill import EARTH_RADIUS, circular_orbit, hill_rotation, mean_motion
+from filters.navigation.hill import EARTH_RADIUS, circular_orbit, hill_rotation, mean_motion
 
 __all__ = ["FormationResult", "FormationScenario", "simulate_formation"]
 
@@ -170,7 +170,7 @@ def simulate_formation(scenario: FormationScenario, seed: int) -> FormationResul
     -------
     FormationResult
     """
-    from filters.relnav import RelativeNavigationFilter  # the navigator builds on this package
+    from filters.navigation.relnav import RelativeNavigationFilter
 
     clock = time.perf_counter()
     sc = scenario

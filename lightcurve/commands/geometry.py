@@ -32,7 +32,7 @@ from lightcurve.commands._satellite_args import (
     warnings_to_stderr,
 )
 from lightcurve.ephemeris import CircularOrbit, orbit_geometry
-from lightcurve.importing import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
+from lightcurve.epochs import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
 from lightcurve.observations import (
     GEOMETRY_COLUMNS,
     MJD_EPOCH,

@@ -25,16 +25,10 @@ from lightcurve.commands._satellite_args import (
     add_tle_options,
     warnings_to_stderr,
 )
-from lightcurve.importing import (
-    DELIMITERS,
-    TIME_FORMATS,
-    TIME_SCALES,
-    TimeColumn,
-    Topocentric,
-    import_photometry,
-    read_table,
-)
+from lightcurve.epochs import TIME_FORMATS, TIME_SCALES, TimeColumn
+from lightcurve.importing import Topocentric, import_photometry
 from lightcurve.sites import get_site
+from lightcurve.tables import DELIMITERS, read_table
 
 NAME = "import"
 HELP = "import a photometry table (times, magnitudes, TLEs or topocentric data) as observations"

@@ -16,17 +16,15 @@ tolerance, and inertia estimates that have settled. The file format is in
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
-from lightcurve.atomic import atomic_write_json, atomic_write_table
+from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
 from lightcurve.scenarios import ScenarioError
-from lightcurve.scenarios.monocular import (
-    _json_safe,
-    _report,
-    _without_truth,
+from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
+from lightcurve.studies.monocular import (
     estimates_table,
-    load_monocular_scenario,
-    read_measurements,
+    print_summary,
     run_study,
     summarize,
     write_figures,
@@ -65,13 +63,13 @@ def run(args: argparse.Namespace) -> int:
         if args.runs != 1:
             raise ScenarioError("--runs applies to simulated measurements only")
         external = read_measurements(args.measurements)
-        scenario = _without_truth(scenario)
+        scenario = dataclasses.replace(scenario, truth=None)
     study = run_study(scenario, args.runs, args.seed, external)
     summary = summarize(study, args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_table(estimates_table(study), args.out / "estimates.parquet")
     if not args.no_plots:
         summary["figures"] = [p.name for p in write_figures(study, args.out)]
-    atomic_write_json(args.out / "summary.json", _json_safe(summary))
-    _report(summary)
+    atomic_write_json(args.out / "summary.json", json_ready(summary))
+    print_summary(summary)
     return 0

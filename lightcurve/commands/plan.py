@@ -16,11 +16,8 @@ from pathlib import Path
 
 from lightcurve.atomic import atomic_write_json
 from lightcurve.scenarios import ScenarioError
-from lightcurve.scenarios.landing import (
-    load_scenario,
-    run_study,
-    summarize,
-)
+from lightcurve.scenarios.landing import load_scenario
+from lightcurve.studies.landing import run_study, summarize
 
 NAME = "plan"
 

@@ -19,12 +19,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from filters.relnav import simulate_approach
 from lightcurve.atomic import atomic_write_json, atomic_write_table
 from lightcurve.scenarios.relnav import (
     _AXES,
     load_relnav_scenario,
 )
+from lightcurve.studies.relnav import simulate_approach
 
 NAME = "relnav"
 

@@ -15,11 +15,11 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from filters.stereo_montecarlo import run_monte_carlo
 from lightcurve.atomic import atomic_write_json, atomic_write_table
 from lightcurve.scenarios.stereo import (
     load_stereo_scenario,
 )
+from lightcurve.studies.stereo import run_monte_carlo
 
 NAME = "stereo"
 

@@ -1,9 +1,10 @@
-"""Scenario files and studies of the close-range navigation problems.
+"""Scenario files of the close-range navigation studies.
 
 ``lightcurve.scenarios`` reads the TOML scenario files of ``data/scenarios/`` with errors
-that name the file and the field (:mod:`~lightcurve.scenarios.toml`), and runs the studies
-behind the ``monocular`` (Deng et al. 2024), ``plan`` (Li et al. 2024), ``stereo`` (Feng et al.) and
-``relnav`` (Shi et al.) commands; the estimators themselves live in :mod:`filters`.
+that name the file and the field (:mod:`~lightcurve.scenarios.toml`) into the scenario
+definitions of :mod:`lightcurve.studies`: ``monocular`` (Deng et al. 2024), ``landing``
+(``plan``, Li et al. 2024), ``stereo`` (Feng et al.) and ``relnav`` (Shi et al.). The studies
+themselves live in :mod:`lightcurve.studies`, the estimators in :mod:`filters`.
 """
 
 from lightcurve.scenarios.toml import ScenarioError, TomlTable, load_toml

@@ -7,38 +7,23 @@ The ``lightcurve plan`` command is a thin layer over this module.
 from __future__ import annotations
 
 import math
-import time
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from filters.camera import PinholeCamera
-from filters.gravity import SphericalHarmonicGravity
-from filters.lander import (
-    STRATEGIES,
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.gravity import SphericalHarmonicGravity
+from filters.navigation.lander import (
     DescentTrajectory,
-    Draws,
     LanderDynamics,
     LanderModel,
-    LandingScenario,
     LandmarkMap,
     NadirPointing,
-    NavigationRun,
     SiteFrame,
     anchor_pixels,
-    compare_strategies,
-    draw,
-    error_statistics,
 )
 from lightcurve.scenarios import TomlTable, load_toml
-
-PAPER = {
-    "images_used": {"fisher_trace": 55, "every_step": 104},
-    "position_error_std_m": {"fisher_trace": 0.0082, "every_step": 0.0068},
-    "attitude_error_std_deg": {"fisher_trace": 0.23, "every_step": 0.1932},
-}
+from lightcurve.studies.landing import LandingScenario
 
 
 def _vector(table: TomlTable, field: str, size: int = 3) -> np.ndarray:
@@ -165,89 +150,3 @@ def load_scenario(path: str | Path) -> LandingScenario:
     for table in (root, body, site_t, traj, cam_t, marks, noise, filt, plan):
         table.check_unknown()
     return scenario
-
-
-@dataclass(frozen=True)
-class Study:
-    """Result of :func:`run_study`: the draws, each strategy's run and its statistics."""
-
-    scenario: LandingScenario
-    draws: Draws
-    runs: dict[str, NavigationRun]
-    statistics: dict[str, dict[str, np.ndarray]]
-    seed: int
-    seconds: float
-
-
-def run_study(scenario: LandingScenario, runs: int, seed: int) -> Study:
-    """Draw ``runs`` descents with ``numpy.random.default_rng(seed)`` and compare strategies."""
-    if runs < 1:
-        raise ValueError(f"--runs must be >= 1, got {runs}")
-    start = time.perf_counter()
-    draws = draw(scenario, runs, np.random.default_rng(seed))
-    navigation = compare_strategies(scenario, draws)
-    stats = {name: error_statistics(scenario, run, draws) for name, run in navigation.items()}
-    return Study(scenario, draws, navigation, stats, seed, time.perf_counter() - start)
-
-
-def _spread(values: np.ndarray) -> dict[str, Any]:
-    values = np.asarray(values, dtype=float)
-    spread = float(np.std(values, axis=0, ddof=1)) if len(values) > 1 else 0.0
-    return {"mean": float(np.mean(values, axis=0)), "spread": spread}
-
-
-def summarize(study: Study) -> dict[str, Any]:
-    """The ``summary.json`` content of a study (see the module docstring)."""
-    scenario = study.scenario
-    dt = scenario.model.dt
-    total = scenario.steps + 1
-    strategies: dict[str, Any] = {}
-    for name in STRATEGIES:
-        stats, run = study.statistics[name], study.runs[name]
-        images = stats["images"]
-        entry: dict[str, Any] = {
-            "images_used": {
-                **_spread(images),
-                "min": int(images.min()),
-                "max": int(images.max()),
-            },
-            "images_total": total,
-        }
-        for key, unit in (("position", "m"), ("velocity", "m_s"), ("attitude", "deg")):
-            if key == "attitude" and not scenario.model.estimate_attitude:
-                entry["attitude_error_std_deg"] = None
-                continue
-            block = _spread(stats[f"{key}_std"])
-            block["per_axis_mean"] = np.mean(stats[f"{key}_std_axes"], axis=0).tolist()
-            entry[f"{key}_error_std_{unit}"] = block
-        entry["position_error_rms_m"] = _spread(stats["position_rms"])
-        entry["observation_times_s"] = [
-            (np.flatnonzero(run.taken[:, b]) * dt).tolist() for b in range(run.taken.shape[1])
-        ]
-        strategies[name] = entry
-    every, trace, improved = (study.statistics[n] for n in STRATEGIES)
-    comparison = {
-        "fisher_trace_images_fraction": float(trace["images"].mean() / every["images"].mean()),
-        "fisher_trace_vs_every_step_position_std": float(
-            trace["position_std"].mean() / every["position_std"].mean()
-        ),
-        "improved_vs_fisher_trace_position_std": float(
-            improved["position_std"].mean() / trace["position_std"].mean()
-        ),
-        "improved_vs_fisher_trace_position_rms": float(
-            improved["position_rms"].mean() / trace["position_rms"].mean()
-        ),
-        "improved_lower_std_fraction_of_runs": float(
-            np.mean(improved["position_std"] < trace["position_std"])
-        ),
-    }
-    return {
-        "runs": int(study.draws.truth.shape[1]),
-        "seed": study.seed,
-        "settle_time_s": scenario.settle_step * dt,
-        "s_max": scenario.s_max,
-        "strategies": strategies,
-        "comparison": comparison,
-        "paper": PAPER,
-        "elapsed_s": study.seconds,
-    }

@@ -1,8 +1,8 @@
 """Relative-navigation approach scenario files (Shi et al., multimodal relative navigation).
 
-A TOML file becomes a :class:`filters.relnav.ApproachScenario`; sensor tables of
-``kind = "rgnss"`` become :class:`filters.relnav.RgnssSensor` with their almanac read from
-the file they name (relative to the scenario file).
+A TOML file becomes a :class:`lightcurve.studies.relnav.ApproachScenario`; sensor tables of
+``kind = "rgnss"`` become :class:`lightcurve.studies.relnav.RgnssSensor` with their almanac
+read from the file they name (relative to the scenario file).
 
 The ``lightcurve relnav`` command is a thin layer over this module.
 """
@@ -17,9 +17,9 @@ import numpy as np
 from filters.gnss.constellation import AlmanacError, parse_yuma
 from filters.gnss.measurements import ReceiverModel
 from filters.gnss.relative import RelativeGnssConfig
-from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
-from filters.relnav import ApproachScenario, PositionSensor, RgnssSensor
+from filters.navigation.hill import EARTH_MU, EARTH_RADIUS, mean_motion
 from lightcurve.scenarios import ScenarioError, TomlTable, load_toml
+from lightcurve.studies.relnav import ApproachScenario, PositionSensor, RgnssSensor
 
 _AXES = ("x", "y", "z", "vx", "vy", "vz")
 

@@ -1,6 +1,6 @@
 """Stereo relative-navigation scenario files (Feng et al.).
 
-A TOML file becomes a :class:`filters.stereo_montecarlo.StereoScenario`.
+A TOML file becomes a :class:`lightcurve.studies.stereo.StereoScenario`.
 
 The ``lightcurve stereo`` command is a thin layer over this module.
 """
@@ -14,11 +14,11 @@ from typing import Any
 import numpy as np
 
 from filters.attitude import euler321_to_quaternion
-from filters.camera import PinholeCamera
-from filters.hill import EARTH_MU, EARTH_RADIUS, mean_motion
-from filters.stereo import StereoCamera
-from filters.stereo_montecarlo import StereoScenario
+from filters.navigation.camera import PinholeCamera
+from filters.navigation.hill import EARTH_MU, EARTH_RADIUS, mean_motion
+from filters.navigation.stereo import StereoCamera
 from lightcurve.scenarios import ScenarioError, load_toml
+from lightcurve.studies.stereo import StereoScenario
 
 
 def load_stereo_scenario(path: str | Path) -> StereoScenario:

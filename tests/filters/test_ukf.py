@@ -21,7 +21,7 @@ from filters.attitude import (
     rotation_vector_to_quaternion,
     torque_free_derivative,
 )
-from filters.kalman import chi2_band, mahalanobis_squared
+from filters.gaussian import chi2_band, mahalanobis_squared
 from filters.ukf import (
     AttitudeUKF,
     ProcessNoise,

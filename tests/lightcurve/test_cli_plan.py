@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from filters.gravity import EROS_MU
+from filters.navigation.gravity import EROS_MU
 from lightcurve.cli import main
 from lightcurve.scenarios.landing import load_scenario
 

@@ -11,9 +11,11 @@ import pytest
 from lightcurve import io
 from lightcurve.cli import main
 from lightcurve.datasets.starlink import POMENIS_PATH, predict_observations, predict_pomenis
-from lightcurve.importing import TimeColumn, Topocentric, import_photometry, read_table
+from lightcurve.epochs import TimeColumn
+from lightcurve.importing import Topocentric, import_photometry
 from lightcurve.observations import ObservationError
 from lightcurve.sites import get_site
+from lightcurve.tables import read_table
 from lightcurve.tle import read_tles, select_object
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,6 +1,6 @@
 """The inversion API: input errors, the measurement model, and reduced accuracy studies.
 
-The studies are the code of ``benchmarks/inversion.py`` (:mod:`lightcurve.inversion_study`)
+The studies are the code of ``benchmarks/inversion.py`` (:mod:`benchmarks.inversion_study`)
 with fewer runs, shorter arcs and a lighter search; the properties asserted are the
 benchmark's targets for the UKF, the MMAE bank and the particle filter.
 """
@@ -12,10 +12,7 @@ import pandas as pd
 import pytest
 import torch
 
-from filters.attitude import random_quaternion
-from filters.kalman import chi2_band
-from lightcurve.inversion import InversionResult, invert, shape_symmetry
-from lightcurve.inversion_study import (
+from benchmarks.inversion_study import (
     Scenario,
     draw_truth,
     geometry,
@@ -24,6 +21,9 @@ from lightcurve.inversion_study import (
     simulate_run,
     ukf_study,
 )
+from filters.attitude import random_quaternion
+from filters.gaussian import chi2_band
+from lightcurve.inversion import InversionResult, invert, shape_symmetry
 from lightcurve.measurement import PhotometricModel
 from lightcurve.observations import Observations
 from shapes import get_library

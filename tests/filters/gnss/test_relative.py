@@ -19,7 +19,7 @@ from filters.gnss.measurements import (
     visible_satellites,
 )
 from filters.gnss.relative import RelativeGnssSolver
-from filters.hill import circular_orbit
+from filters.navigation.hill import circular_orbit
 
 ALMANAC = Path(__file__).resolve().parents[3] / "data" / "gnss" / "gps_week147_yuma.alm"
 
