@@ -12,9 +12,9 @@ the eclipse seasons) and the mixture are drawn from a seeded generator.
 
 For each nominal per-curve false-alarm level FA the fraction of curves with any detection
 is reported (a curve has a detection at FA when its largest brightening, in units of its σ,
-exceeds the detector's threshold for FA: one baseline serves every level), for the
-local-quadratic baseline (the default) and, in the same run, for the running straight line
-(``degree = 1``) it replaces.
+exceeds the detector's threshold for FA: one baseline serves every level), with its 95 %
+Clopper–Pearson upper bound, for the local-quadratic baseline (the default), and in the
+same run for the local cubic and the running straight line (``degree`` 3 and 1).
 
     python -m benchmarks.glint_false_alarm [--curves 200] [--seed 0]
 """
@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 import pandas as pd
+from scipy.stats import beta
 
 from benchmarks._machine import machine_info
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
@@ -36,6 +37,9 @@ from lightcurve.observations import Observations, datetime_to_mjd
 
 LEVELS = (1e-3, 1e-2, 0.05, 0.2)
 NOISE_MAG = 0.02
+BASELINES = {"local_cubic": 3, "local_quadratic": 2, "straight_line": 1}
+DEFAULT_BASELINE = "local_quadratic"
+MAX_NIGHTS = 1000  # night geometries drawn per accepted curve before giving up
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -49,7 +53,9 @@ def _night(rng: np.random.Generator) -> Observations | None:
     # Days of the year outside the eclipse seasons (±25 d around the equinoxes).
     day = rng.choice(np.r_[np.arange(105, 240), np.arange(290, 330), np.arange(0, 55)])
     date = pd.Timestamp("2026-01-01", tz="UTC") + pd.Timedelta(days=int(day))
-    midnight = datetime_to_mjd(pd.DatetimeIndex([date]))[0] + 0.5 - lon / 360.0
+    # MJD days start at 0 h UTC; local (mean solar) midnight at east longitude ``lon`` comes
+    # ``lon/15`` hours earlier.
+    midnight = datetime_to_mjd(pd.DatetimeIndex([date]))[0] - lon / 360.0
     mjd = midnight + np.arange(-5 * 3600.0, 5 * 3600.0, 60.0) / 86400.0
     orbit = CircularOrbit.geostationary(lon + rng.uniform(-40.0, 40.0), mjd[0])
     try:
@@ -60,7 +66,7 @@ def _night(rng: np.random.Generator) -> Observations | None:
 
 def glint_free_curve(rng: np.random.Generator) -> tuple[Observations, float]:
     """One accepted glint-free curve (noisy) and the span of its noiseless magnitudes."""
-    while True:
+    for _ in range(MAX_NIGHTS):
         geometry = _night(rng)
         if geometry is None or len(geometry.times) < 200:
             continue
@@ -80,7 +86,13 @@ def glint_free_curve(rng: np.random.Generator) -> tuple[Observations, float]:
                 continue
             noisy = mag + rng.normal(0.0, NOISE_MAG, len(mag))
             table = geometry.table.assign(mag=noisy, mag_err=NOISE_MAG)
-            return Observations(table, geometry.metadata), span
+            return Observations(table, geometry.meta), span
+    raise RuntimeError(f"no night of {MAX_NIGHTS} drawn gave an acceptable glint-free curve")
+
+
+def upper_bound(hits: int, n: int, confidence: float = 0.95) -> float:
+    """One-sided Clopper–Pearson upper bound on a rate from ``hits`` of ``n`` trials."""
+    return 1.0 if hits >= n else float(beta.ppf(confidence, hits + 1, n - hits))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -89,20 +101,23 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     rng = np.random.default_rng(args.seed)
-    hits = {degree: dict.fromkeys(LEVELS, 0) for degree in (2, 1)}
+    hits = {name: dict.fromkeys(LEVELS, 0) for name in BASELINES}
     spans, points = [], []
-    seconds = {2: 0.0, 1: 0.0}
+    seconds = dict.fromkeys(BASELINES, 0.0)
+    seconds_curves = 0.0
     for _ in range(args.curves):
+        start = time.perf_counter()
         curve, span = glint_free_curve(rng)
+        seconds_curves += time.perf_counter() - start
         spans.append(span)
         points.append(len(curve.times))
-        for degree in (2, 1):
+        for name, degree in BASELINES.items():
             start = time.perf_counter()
             detection = detect_glints(curve, false_alarm=LEVELS[-1], degree=degree)
-            seconds[degree] += time.perf_counter() - start
+            seconds[name] += time.perf_counter() - start
             peak = float(np.max(detection.excess_sigma))
             for level in LEVELS:
-                hits[degree][level] += peak > detection_threshold(level, len(curve.times))
+                hits[name][level] += peak > detection_threshold(level, len(curve.times))
     n = args.curves
     result = {
         "benchmark": "glint_false_alarm",
@@ -115,19 +130,26 @@ def main(argv: list[str] | None = None) -> None:
             "median": float(np.median(spans)),
             "max": float(np.max(spans)),
         },
+        "default_baseline": DEFAULT_BASELINE,
         "levels": [
             {
                 "false_alarm": level,
                 "allowed_curves": level * n,
-                "local_quadratic": {"curves": hits[2][level], "rate": hits[2][level] / n},
-                "straight_line": {"curves": hits[1][level], "rate": hits[1][level] / n},
-                "holds": hits[2][level] <= level * n,
+                **{
+                    name: {
+                        "curves": hits[name][level],
+                        "rate": hits[name][level] / n,
+                        "rate_upper_95": upper_bound(hits[name][level], n),
+                    }
+                    for name in BASELINES
+                },
+                "holds": hits[DEFAULT_BASELINE][level] <= level * n,
             }
             for level in LEVELS
         ],
-        "seconds_per_detection": {
-            "local_quadratic": seconds[2] / n,
-            "straight_line": seconds[1] / n,
+        "seconds_per_curve": {
+            "geometry": seconds_curves / n,
+            **{name: seconds[name] / n for name in BASELINES},
         },
         "machine": machine_info(),
     }

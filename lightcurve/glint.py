@@ -6,10 +6,11 @@ object). The epoch of a flash therefore measures the panel normal's direction at
 instant; several flashes of a stabilised object give the normal by least squares, and the
 spacing of a tumbler's flashes gives its spin period.
 
-Detection. The baseline is a running straight-line fit over ``window_s`` (unbiased for
-linear trends, also at the ends of a light curve and beside gaps) with iterative clipping of
-brightenings above 3σ, so the flashes themselves do not pull it up; the scatter is estimated
-robustly, ``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
+Detection. The baseline is a local polynomial (quadratic by default: it follows the bend of
+a curve fading towards the terminator; ``degree=1`` is the running straight line) fitted over
+``window_s`` with tricube weights, with iterative clipping of brightenings above 3σ, so the
+flashes themselves do not pull it up; the scatter is estimated robustly,
+``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
 baseline by ``z σ √(1 + h_i)`` (``h_i`` the leverage of the point in its local fit), with
 ``z`` chosen so that a light curve of N points of pure Gaussian noise shows any such point
 with probability ``false_alarm``: ``z = Φ⁻¹(1 − false_alarm/N)`` (Bonferroni). Consecutive
