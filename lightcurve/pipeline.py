@@ -15,6 +15,7 @@ measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``, ``omega_s
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -102,12 +103,14 @@ def invert_file(
     init: str = "search",
     drop_bad_rows: bool = False,
     modes: bool = False,
+    progress: Callable[[float, str], None] | None = None,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
 
     A file whose header names its object's shape (``# shape: NAME``, as ``lightcurve
     simulate`` writes) must name a shape of the library; with ``shape_names`` None that
-    shape is the file's only candidate.
+    shape is the file's only candidate. ``progress(fraction, message)``, when given, is
+    handed to :func:`~lightcurve.inversion.invert`.
 
     Returns
     -------
@@ -156,6 +159,7 @@ def invert_file(
         candidates,
         method=method,
         modes=modes,
+        progress=progress,
         **{k: v for k, v in options.items() if v is not None},
     )
     atomic_write_table(result.estimates, result_dir / "estimates.parquet")
