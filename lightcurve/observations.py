@@ -288,6 +288,17 @@ def mjd_to_datetime(mjd: np.ndarray) -> pd.DatetimeIndex:
     return MJD_EPOCH + pd.to_timedelta(np.round(np.asarray(mjd) * SECONDS_PER_DAY * 1e6), "us")
 
 
+def iso_epochs(mjd: np.ndarray) -> np.ndarray:
+    """MJD (UTC) → ISO-8601 strings rounded to the millisecond, ``2024-03-10T04:48:07.000Z``.
+
+    float64 MJD carries ~1 µs near the present; printing microseconds would show that
+    round-off (``06.999999``), so the ``epoch`` column is rounded to milliseconds (the
+    ``mjd`` column keeps full precision).
+    """
+    stamps = mjd_to_datetime(mjd).round("ms")
+    return np.asarray([f"{text[:-3]}Z" for text in stamps.strftime("%Y-%m-%dT%H:%M:%S.%f")])
+
+
 def datetime_to_mjd(epochs: pd.Series | pd.DatetimeIndex) -> np.ndarray:
     """UTC timestamps → MJD (UTC)."""
     delta = pd.DatetimeIndex(epochs) - MJD_EPOCH
@@ -434,9 +445,7 @@ def validate_table(
             flag(mismatch > 1e-3, "mjd", "'mjd' and 'epoch' disagree by more than 1 ms")
         else:
             table["mjd"] = epoch_mjd
-    table["epoch"] = mjd_to_datetime(table["mjd"].fillna(0).to_numpy()).strftime(
-        "%Y-%m-%dT%H:%M:%S.%fZ"
-    )
+    table["epoch"] = iso_epochs(table["mjd"].fillna(0).to_numpy())
 
     if require_magnitudes:
         flag(table["mag_err"].to_numpy() <= 0, "mag_err", "mag_err must be > 0 (1-sigma, mag)")

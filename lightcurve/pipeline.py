@@ -23,7 +23,7 @@ import numpy as np
 
 from lightcurve import io
 from lightcurve.atomic import atomic_write_table
-from lightcurve.observations import mjd_to_datetime
+from lightcurve.observations import iso_epochs
 
 __all__ = ["SUMMARY_KEYS", "invert_file", "resolve_shapes"]
 
@@ -170,7 +170,7 @@ def invert_file(
         "shape": result.shape,
         "shape_probabilities": {k: float(v) for k, v in result.shape_probabilities.items()},
         "none_fits": bool(result.none_fits),
-        "epoch": mjd_to_datetime(np.array([result.epoch_mjd])).strftime("%Y-%m-%dT%H:%M:%S.%fZ")[0],
+        "epoch": iso_epochs(np.array([result.epoch_mjd]))[0],
         "quaternion": [float(v) for v in result.quaternion],
         "omega_rad_s": [float(v) for v in result.omega_rad_s],
         "attitude_sigma_deg": float(result.attitude_sigma_deg),

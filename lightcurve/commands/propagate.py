@@ -28,10 +28,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--inertia",
         type=inertia_tensor,
-        default=inertia_tensor(_NUTATION_INERTIA),
+        default=_NUTATION_INERTIA,  # a string default goes through the type
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
-        help="body-frame inertia, kg m² or any unit (only the ratios matter) "
-        f"(default: {_NUTATION_INERTIA}, the nutation scenario of docs/monocular.md)",
+        help="body-frame inertia, kg m² or any unit (only the ratios matter); the default is "
+        "the nutation scenario of docs/monocular.md",
     )
     parser.add_argument(
         "--q0",

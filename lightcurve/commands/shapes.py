@@ -165,8 +165,16 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     return 0
 
 
+#: Entries smaller than this fraction of the largest printed as 0 (round-off, not data).
+_ROUND_OFF = 1e-12
+
+
 def _matrix(matrix: np.ndarray) -> str:
-    return "\n".join("    " + "  ".join(f"{v:14.6g}" for v in row) for row in matrix)
+    """Rows of ``%14.6g`` numbers; round-off (``-2.89e-17`` beside 5902.7) printed as 0."""
+    matrix = np.asarray(matrix, dtype=float)
+    scale = float(np.max(np.abs(matrix), initial=0.0))
+    shown = np.where(np.abs(matrix) <= _ROUND_OFF * scale, 0.0, matrix)
+    return "\n".join("    " + "  ".join(f"{v:14.6g}" for v in row) for row in shown)
 
 
 def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:

@@ -16,8 +16,8 @@ are dropped and counted in the file's header.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
-data/telescopes/, e.g. half_metre; --condition TABLE.KEY=VALUE overrides one value and may
-be given alone to start from the 0.5 m defaults): extinction with airmass, seeing losses,
+a built-in telescope, e.g. half_metre; --condition TABLE.KEY=VALUE overrides one value and may be
+given alone to start from the 0.5 m defaults): extinction with airmass, seeing losses,
 sky, dark current, read noise, gain, scintillation and saturation, with the columns
 extinction_mag and saturated added (see docs/rendering.md).
 """
@@ -101,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--conditions",
         metavar="FILE.toml|NAME",
         help="observing conditions: a TOML file with [telescope] [detector] [site] [sky] "
-        "[photometry] tables, or a name in data/telescopes/ (half_metre)",
+        "[photometry] tables, or a built-in telescope name (half_metre)",
     )
     parser.add_argument(
         "--condition",
