@@ -3,7 +3,8 @@
 Source: Fankhauser, Askari & Tyson, "Satellite Optical Brightness" (2023), MIT license;
 files in ``data/starlink/`` of a checkout (a real data set, not package data). The
 observations give the UTC time, the satellite height above the Earth (km), its topocentric
-altitude and azimuth (degrees) and the measured AB magnitude at Mount Lemmon (32.4434° N, 110.7881° W, ~2790 m).
+altitude and azimuth (degrees) and the measured AB magnitude at Mount Lemmon (32.4434° N,
+110.7881° W, ~2790 m).
 
 The brightness model of the paper (``starlink_surface_descriptions.txt``): two flat
 surfaces, the chassis underside (3.64 m², normal ``(0, 0, −1)`` pointing to nadir) and the
