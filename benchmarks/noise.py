@@ -2,8 +2,8 @@
 
 Unbiasedness: ``--runs`` independent sets (seeds 0, 1, …) of 10⁴ exposures of a constant
 V = 11 source observed between 20° and 90° elevation (elevations from seed 2024) under the
-defaults (``data/telescopes/half_metre.toml``), 1 s and 10 s exposures; per set the offset
-of the mean extinction-corrected magnitude from the truth in units of its standard error,
+defaults (``lightcurve/data/telescopes/half_metre.toml``), 1 s and 10 s exposures; per set the
+offset of the mean extinction-corrected magnitude from the truth in units of its standard error,
 ``z`` — as measured, and after removing the second-order bias of a magnitude,
 ``(2.5/ln 10) σ_F²/2`` with ``σ_F`` the relative flux error — the same for the mean flux,
 and the extinction coefficient fitted to the uncorrected magnitudes against airmass. The

@@ -1,7 +1,7 @@
 """Starlink v1.5: predicted vs measured brightness of the 1173 Pomenis observations.
 
 The two-surface model (chassis to nadir, solar array turned to the Sun) with the materials
-fitted to the laboratory BRDF tables (``data/materials.toml``), the Sun from astropy, and the
+fitted to the laboratory BRDF tables (``brdf/data/materials.toml``), the Sun from astropy, and the
 satellite position from the observed altitude, azimuth and height. Nothing is fitted to the
 brightness observations. Prints JSON with the residual statistics (measured − predicted,
 mag) for the two-lobe materials (the presets) and, in the same run, for the earlier one-lobe

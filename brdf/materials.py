@@ -1,7 +1,7 @@
 """Material presets: named reflectance models with parameters and their sources.
 
-The presets live in ``data/materials.toml`` of the repository (``<repo>/data/materials.toml``,
-found relative to this package). Each table is one material::
+The presets live in ``brdf/data/materials.toml``, package data read through
+:mod:`importlib.resources` (so an installed wheel has them). Each table is one material::
 
     [white-paint]
     model = "lambert"
@@ -15,6 +15,7 @@ with `brdf.get`, so a bad preset is reported with the file and the material name
 from __future__ import annotations
 
 import tomllib
+from importlib import resources
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -22,7 +23,7 @@ from brdf.registry import BRDF, get
 
 __all__ = ["PRESETS_PATH", "Preset", "load_presets"]
 
-PRESETS_PATH = Path(__file__).resolve().parent.parent / "data" / "materials.toml"
+PRESETS_PATH = Path(str(resources.files("brdf").joinpath("data", "materials.toml")))
 
 
 class Preset(NamedTuple):

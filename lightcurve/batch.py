@@ -165,6 +165,7 @@ def run_batch(
     progress: bool = True,
     summary_columns: Sequence[str] = (),
     error_template: dict[str, Any] | None = None,
+    job_progress: bool = False,
 ) -> pd.DataFrame:
     """Run ``job`` over every input and write ``out_dir/summary.csv``.
 
@@ -192,6 +193,9 @@ def run_batch(
     error_template : dict, optional
         Keys and default values every error record carries (so error summaries have the
         same keys as successful ones).
+    job_progress : bool
+        The job takes a ``progress(fraction, message)`` keyword: with ``progress`` and inputs
+        run in this process (one worker, no scheduler), a second bar follows each input.
 
     Returns
     -------
@@ -214,17 +218,41 @@ def run_batch(
             todo.append(path)
     logger.info("%d input(s): %d done before, %d to run", len(files), len(records), len(todo))
     bar = tqdm(total=len(todo), desc="invert", unit="file", disable=not progress or not todo)
+    in_process = workers <= 1 and not scheduler
+    inner = tqdm(
+        total=1.0,
+        desc="this file",
+        position=1,
+        leave=False,
+        bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
+        disable=not (progress and job_progress and in_process and todo),
+    )
+    if not inner.disable:
+        options["progress"] = _file_progress(inner)
     try:
         runs = _execute(job, todo, out_dir, options, workers, scheduler, error_template or {})
         for path, record in runs:
             records[path] = record
             bar.update(1)
             bar.set_postfix_str(f"{path.stem}: {record['status']}")
+            inner.reset(total=1.0)
     finally:
+        inner.close()
         bar.close()
         table = _summary_table([records[p] for p in files if p in records], summary_columns)
         atomic_write_table(table, out_dir / "summary.csv")
     return table
+
+
+def _file_progress(bar: tqdm) -> Callable[[float, str], None]:
+    """A ``progress(fraction, message)`` callback that moves ``bar`` (total 1)."""
+
+    def report(fraction: float, message: str) -> None:
+        bar.n = min(max(float(fraction), 0.0), 1.0)
+        bar.set_postfix_str(message[:60], refresh=False)
+        bar.refresh()
+
+    return report
 
 
 def _execute(

@@ -18,8 +18,10 @@ Modules are discovered at start-up (their ``NAME``/``HELP``/``ORDER`` are read f
 source, and only the invoked command's module is imported, so the CLI starts fast), so
 adding a command means adding one file. User errors
 (:class:`ValueError`, :class:`OSError` and their subclasses, which every package in this
-project uses for bad input) are printed as one line ``lightcurve <cmd>: error: ...`` with
-exit code 2; ``-v`` shows the traceback and debug logging.
+project uses for bad input) and usage mistakes are printed as one line
+``lightcurve <cmd>: error: ...`` with exit code 2; ``-v`` shows the traceback and debug
+logging, ``-q`` keeps warnings and errors only (no progress bars); both work before or after
+the command. Every option's help ends with its default, ``(default: X)``.
 
 Threads: ``lightcurve --threads N COMMAND …`` (or the ``LIGHTCURVE_THREADS`` environment
 variable) sets how many threads a command computes on (torch's intra-op threads, the fused
@@ -42,6 +44,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 from lightcurve import __version__
 
@@ -91,6 +94,85 @@ def command_specs() -> list[CommandSpec]:
     return sorted(specs, key=lambda spec: (spec.order, spec.name))
 
 
+def _default_text(value: object) -> str:
+    """A default as typed on the command line: sequences comma-separated, no brackets."""
+    if isinstance(value, str):
+        return value
+    if hasattr(value, "tolist"):
+        value = value.tolist()
+    if isinstance(value, list | tuple):
+        return ",".join(_default_text(item) for item in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def _plain(text: str | None) -> str | None:
+    """A docstring as plain help text: reStructuredText's ``literal`` quotes removed."""
+    return None if text is None else re.sub(r"``([^`]*)``", r"\1", text)
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Appends ``(default: X)`` to every option whose default is a value.
+
+    Options whose help already states the default (``default:``) are left as written; so are
+    flags (default off) and options without a default (``None``), whose help says what their
+    absence means when it means something.
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (
+            "default:" in text
+            or default is None
+            or default is False
+            or default is argparse.SUPPRESS
+            or (isinstance(default, list | tuple) and not default)
+            or not action.option_strings
+            or isinstance(action, argparse._CountAction)
+        ):
+            return text
+        shown = _default_text(default).replace("%", "%%")
+        return f"{text} (default: {shown})" if text else f"(default: {shown})"
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` with :class:`HelpFormatter` and one-line usage errors.
+
+    Sub-command parsers are made of the same class (argparse's ``add_subparsers`` uses the
+    parent's class), so every level formats and reports the same way.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE`` and a pointer to ``--help``; exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def _add_verbosity(parser: argparse.ArgumentParser, suffix: str = "") -> None:
+    """``-v``/``-q`` counters; after the command they count into separate destinations."""
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=0,
+        dest=f"verbose{suffix}",
+        help="more logging (-v: info and tracebacks, -vv: debug)",
+    )
+    parser.add_argument(
+        "-q",
+        "--quiet",
+        action="count",
+        default=0,
+        dest=f"quiet{suffix}",
+        help="less logging (-q: warnings and errors, -qq: errors) and no progress bars",
+    )
+
+
 def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
     """Return the argument parser.
 
@@ -99,14 +181,12 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
     load : iterable of str, optional
         Commands whose modules are imported to add their arguments (all when None).
     """
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="lightcurve",
         description="Simulate and invert light curves of space objects.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument(
-        "-v", "--verbose", action="count", default=0, help="more logging; -v shows tracebacks"
-    )
+    _add_verbosity(parser)
     parser.add_argument(
         "--threads",
         type=_thread_count,
@@ -120,10 +200,8 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
             sub.add_parser(spec.name, help=spec.help, add_help=False)
             continue
         module = importlib.import_module(spec.module)
-        cmd = sub.add_parser(spec.name, help=spec.help, description=module.__doc__)
-        cmd.add_argument(
-            "-v", "--verbose", action="count", default=argparse.SUPPRESS, help=argparse.SUPPRESS
-        )
+        cmd = sub.add_parser(spec.name, help=spec.help, description=_plain(module.__doc__))
+        _add_verbosity(cmd, suffix="_after")
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
     return parser
@@ -208,6 +286,18 @@ def configure_threads(threads: str | int | None) -> None:
         torch.set_num_threads(count)
 
 
+_LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
+
+
+def _log_level(verbose: int, quiet: int) -> int:
+    """``-vv`` debug, ``-v`` info, default and ``-q`` warnings, ``-qq`` errors only."""
+    if verbose > 1:
+        return logging.DEBUG
+    if verbose:
+        return logging.INFO
+    return logging.ERROR if quiet > 1 else logging.WARNING
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``lightcurve`` console script."""
     argv = _attach_negative_values(list(sys.argv[1:] if argv is None else argv))
@@ -219,14 +309,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = _invoked_command(argv)
     parser = build_parser(load=[command] if command else [])
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG
-        if args.verbose > 1
-        else logging.INFO
-        if args.verbose
-        else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    args.verbose += getattr(args, "verbose_after", 0)
+    args.quiet += getattr(args, "quiet_after", 0)
+    logging.basicConfig(level=_log_level(args.verbose, args.quiet), format=_LOG_FORMAT)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2

@@ -1,7 +1,7 @@
 """Observing conditions: telescope, detector, site and sky, and the signal budget they give.
 
 An :class:`ObservingConditions` groups five tables — the layout of the conditions TOML files
-(``data/telescopes/half_metre.toml`` holds the defaults, a 0.5 m telescope):
+(``lightcurve/data/telescopes/half_metre.toml`` holds the defaults, a 0.5 m telescope):
 
 ``[telescope]`` aperture, central obstruction, system throughput;
 ``[detector]`` pixel scale, read noise, gain, dark current, full well, ADC range;
@@ -27,6 +27,7 @@ import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -51,7 +52,7 @@ __all__ = [
     "sky_brightness",
 ]
 
-TELESCOPES_PATH = Path(__file__).resolve().parents[1] / "data" / "telescopes"
+TELESCOPES_PATH = Path(str(resources.files("lightcurve").joinpath("data", "telescopes")))
 #: Scale height of the optical turbulence in Young's formula (m; Osborn et al. 2015).
 TURBULENCE_SCALE_HEIGHT_M = 8000.0
 SATURATED_POLICIES = ("flag", "drop")
@@ -505,7 +506,7 @@ def _resolve(spec: str | Path) -> Path:
         return named
     known = sorted(p.stem for p in TELESCOPES_PATH.glob("*.toml"))
     raise FileNotFoundError(
-        f"{spec}: no such conditions file and no telescope of that name in data/telescopes "
+        f"{spec}: no such conditions file and no built-in telescope of that name "
         f"(known: {', '.join(known)})"
     )
 
@@ -518,7 +519,7 @@ def load_conditions(
     Parameters
     ----------
     spec : str or Path, optional
-        A TOML file, or the name of one in ``data/telescopes/`` (``"half_metre"``); None
+        A TOML file, or the name of one in ``lightcurve/data/telescopes/`` (``"half_metre"``); None
         starts from the defaults (the same values as ``half_metre``).
     overrides : sequence of str or mapping
         ``"TABLE.KEY=VALUE"`` strings (values in TOML syntax; bare words are strings) or a

@@ -288,6 +288,27 @@ def mjd_to_datetime(mjd: np.ndarray) -> pd.DatetimeIndex:
     return MJD_EPOCH + pd.to_timedelta(np.round(np.asarray(mjd) * SECONDS_PER_DAY * 1e6), "us")
 
 
+#: Largest round-off of an epoch carried as a float64 MJD near the present (a few ulp of
+#: ~1.3 µs): epochs within it of whole milliseconds are whole milliseconds.
+EPOCH_ROUND_OFF_US = 4
+
+
+def iso_epochs(mjd: np.ndarray) -> np.ndarray:
+    """MJD (UTC) → ISO-8601 strings at the precision of the data, ``…T04:48:07.000Z``.
+
+    float64 MJD carries ~1 µs near the present; printing microseconds would show that
+    round-off (``06.999999``). When every epoch lies within :data:`EPOCH_ROUND_OFF_US` of a
+    whole millisecond, all are written with milliseconds; otherwise (epochs measured to the
+    microsecond) all with microseconds. The ``mjd`` column keeps full precision.
+    """
+    stamps = mjd_to_datetime(mjd)
+    rounded = stamps.round("ms")
+    offset_us = np.abs((stamps - rounded).to_numpy().astype("timedelta64[us]").astype(np.int64))
+    if offset_us.size and offset_us.max() > EPOCH_ROUND_OFF_US:
+        return np.asarray(stamps.strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
+    return np.asarray([f"{text[:-3]}Z" for text in rounded.strftime("%Y-%m-%dT%H:%M:%S.%f")])
+
+
 def datetime_to_mjd(epochs: pd.Series | pd.DatetimeIndex) -> np.ndarray:
     """UTC timestamps → MJD (UTC)."""
     delta = pd.DatetimeIndex(epochs) - MJD_EPOCH
@@ -434,9 +455,7 @@ def validate_table(
             flag(mismatch > 1e-3, "mjd", "'mjd' and 'epoch' disagree by more than 1 ms")
         else:
             table["mjd"] = epoch_mjd
-    table["epoch"] = mjd_to_datetime(table["mjd"].fillna(0).to_numpy()).strftime(
-        "%Y-%m-%dT%H:%M:%S.%fZ"
-    )
+    table["epoch"] = iso_epochs(table["mjd"].fillna(0).to_numpy())
 
     if require_magnitudes:
         flag(table["mag_err"].to_numpy() <= 0, "mag_err", "mag_err must be > 0 (1-sigma, mag)")

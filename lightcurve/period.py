@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +49,8 @@ __all__ = [
 SECONDS_PER_DAY = 86400.0
 SIDEREAL_DAY_S = 86164.0905
 MAX_FREQUENCIES = 400_000
+#: Trial frequencies between two progress reports (a multiple of the solver's 256-chunk).
+_PROGRESS_BLOCK = 8192
 
 
 @dataclass
@@ -290,6 +292,7 @@ def period_search(
     oversample: float = 10.0,
     pole: tuple[float, float] | None = None,
     n_peaks: int = 5,
+    progress: Callable[[int, int], None] | None = None,
 ) -> PeriodResult:
     """Search the rotation period of one or more observation files.
 
@@ -310,6 +313,9 @@ def period_search(
         the PAB-corrected phase.
     n_peaks : int
         Other periodogram minima reported besides the structural aliases.
+    progress : callable, optional
+        Called as ``progress(trials_done, trials_total)`` while the χ² curves are computed
+        (one trial per frequency and harmonic order).
 
     Returns
     -------
@@ -363,7 +369,15 @@ def period_search(
     def bic(c: float, order: int) -> float:
         return c + (2 * order + n_curves + 1) * math.log(n)
 
-    curves = {order: chi2(frequencies, order) for order in orders}
+    curves = {}
+    for done, order in enumerate(orders):
+        blocks = []
+        for i in range(0, len(frequencies), _PROGRESS_BLOCK):
+            blocks.append(chi2(frequencies[i : i + _PROGRESS_BLOCK], order))
+            if progress is not None:
+                trials = done * len(frequencies) + min(i + _PROGRESS_BLOCK, len(frequencies))
+                progress(trials, len(orders) * len(frequencies))
+        curves[order] = np.concatenate(blocks)
 
     def refine(f0: float, order: int) -> tuple[float, float, float]:
         """Local minimum of χ²(f) near f0 (parabola through a fine grid's best triple)."""

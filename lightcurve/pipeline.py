@@ -15,6 +15,7 @@ measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``, ``omega_s
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from lightcurve import io
 from lightcurve.atomic import atomic_write_table
-from lightcurve.observations import mjd_to_datetime
+from lightcurve.observations import iso_epochs
 
 __all__ = ["SUMMARY_KEYS", "check_request", "invert_file", "resolve_shapes"]
 
@@ -151,12 +152,14 @@ def invert_file(
     init: str = "search",
     drop_bad_rows: bool = False,
     modes: bool = False,
+    progress: Callable[[float, str], None] | None = None,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
 
     A file whose header names its object's shape (``# shape: NAME``, as ``lightcurve
     simulate`` writes) must name a shape of the library; with ``shape_names`` None that
-    shape is the file's only candidate.
+    shape is the file's only candidate. ``progress(fraction, message)``, when given, is
+    handed to :func:`~lightcurve.inversion.invert`.
 
     Returns
     -------
@@ -197,7 +200,15 @@ def invert_file(
         particles=particles,
         init=init,
     )
-    result = invert(observations, candidates, method=method, modes=modes, seed=seed, **options)
+    result = invert(
+        observations,
+        candidates,
+        method=method,
+        modes=modes,
+        seed=seed,
+        progress=progress,
+        **options,
+    )
     atomic_write_table(result.estimates, result_dir / "estimates.parquet")
     return {
         "method": method,
@@ -206,7 +217,7 @@ def invert_file(
         "shape": result.shape,
         "shape_probabilities": {k: float(v) for k, v in result.shape_probabilities.items()},
         "none_fits": bool(result.none_fits),
-        "epoch": mjd_to_datetime(np.array([result.epoch_mjd])).strftime("%Y-%m-%dT%H:%M:%S.%fZ")[0],
+        "epoch": iso_epochs(np.array([result.epoch_mjd]))[0],
         "quaternion": [float(v) for v in result.quaternion],
         "omega_rad_s": [float(v) for v in result.omega_rad_s],
         "attitude_sigma_deg": float(result.attitude_sigma_deg),

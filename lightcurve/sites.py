@@ -1,11 +1,11 @@
-"""Ground sites: the table of observatories in ``data/sites/`` and ``--site`` specifications.
+"""Ground sites: the built-in table of observatories and ``--site`` specifications.
 
 A site is given either as ``LAT,LON,ALT_M`` (geodetic latitude and east longitude in
 degrees, WGS84; height above the ellipsoid in metres) or by the name of an observatory in
-``data/sites/observatories.csv`` (``Mount Lemmon``, ``Haleakala``/``Maui``, ``Kislovodsk``,
-``Modra``, ``Zimmerwald``, ``Graz``, ``Siding Spring``, ``La Palma``, …; sources in
-``data/sites/README.md``). Names match ignoring case, spaces and punctuation, and aliases
-are accepted.
+``lightcurve/data/sites/observatories.csv`` (package data: ``Mount Lemmon``,
+``Haleakala``/``Maui``, ``Kislovodsk``, ``Modra``, ``Zimmerwald``, ``Graz``,
+``Siding Spring``, ``La Palma``, …; sources in ``lightcurve/data/sites/README.md``). Names
+match ignoring case, spaces and punctuation, and aliases are accepted.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import csv
 import difflib
 import re
 from functools import cache
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from lightcurve.ephemeris import Site
 
 __all__ = ["SITES_PATH", "get_site", "load_sites", "site_from_label", "site_itrs"]
 
-SITES_PATH = Path(__file__).resolve().parents[1] / "data" / "sites" / "observatories.csv"
+SITES_PATH = Path(str(resources.files("lightcurve").joinpath("data", "sites", "observatories.csv")))
 _COLUMNS = ("name", "latitude_deg", "longitude_deg", "altitude_m", "aliases", "source")
 
 

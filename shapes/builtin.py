@@ -1,4 +1,4 @@
-"""Build the built-in shape library (``data/shapes``) from the primitives and the SBGAT meshes.
+"""Build the built-in shape library (``shapes/data``) from the primitives and the SBGAT meshes.
 
 Run ``python -m shapes.builtin [--out DIR] [--sources DIR]`` to regenerate it; the result
 (meshes, manifest and visibility tables) is committed so users and tests never rebuild it.

@@ -44,6 +44,7 @@ import re
 import shutil
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -101,8 +102,8 @@ def check_name(name: str) -> str:
 
 
 def builtin_library_path() -> Path:
-    """``<repository>/data/shapes``: the built-in library shipped with the project."""
-    return Path(__file__).resolve().parent.parent / "data" / "shapes"
+    """The built-in library: package data of :mod:`shapes` (``shapes/data/``), read-only."""
+    return Path(str(resources.files("shapes").joinpath("data")))
 
 
 def get_library(path: str | os.PathLike[str] | None = None) -> ShapeLibrary:

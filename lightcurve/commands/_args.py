@@ -1,9 +1,11 @@
-"""Argument types shared by the command modules (vectors, inertia tensors)."""
+"""Argument types and options shared by the command modules (vectors, inertia, progress)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -71,3 +73,31 @@ def inertia_tensor(text: str) -> np.ndarray:
     jxx, jyy, jzz = values[:3]
     jxy, jxz, jyz = values[3:] if values.size == 6 else (0.0, 0.0, 0.0)
     return np.array([[jxx, jxy, jxz], [jxy, jyy, jyz], [jxz, jyz, jzz]])
+
+
+def add_progress_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--progress/--no-progress``: a tqdm bar of ``what`` on stderr.
+
+    Without either flag the bar shows when stderr is a terminal and ``-q`` was not given
+    (:func:`show_progress`).
+    """
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"progress bar of {what} on stderr (default: when stderr is a terminal and no -q)",
+    )
+
+
+def show_progress(args: argparse.Namespace) -> bool:
+    """Whether to draw a progress bar: ``--progress``/``--no-progress``, else a TTY without -q."""
+    if getattr(args, "progress", None) is not None:
+        return bool(args.progress)
+    return sys.stderr.isatty() and not getattr(args, "quiet", 0)
+
+
+def progress_bar(args: argparse.Namespace, total: int, desc: str, unit: str) -> Any:
+    """A tqdm bar on stderr (disabled unless :func:`show_progress`); use as a context manager."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit=unit, disable=not show_progress(args), file=sys.stderr)

@@ -19,8 +19,7 @@ def add_site(parser: argparse.ArgumentParser, default: str | None = None) -> Non
         default=default,
         required=default is None,
         metavar="NAME|LAT,LON,ALT_M",
-        help="observatory name (data/sites) or geodetic deg,deg,m"
-        + (f" (default {default})" if default else ""),
+        help="observatory name (built-in table: docs/geometry.md) or geodetic deg,deg,m",
     )
 
 
@@ -32,8 +31,7 @@ def add_tle_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=DEFAULT_MAX_AGE_DAYS,
         metavar="DAYS",
-        help=f"warn for epochs farther than this from their TLE's epoch "
-        f"(default {DEFAULT_MAX_AGE_DAYS:g})",
+        help="warn for epochs farther than this from their TLE's epoch, days",
     )
 
 
@@ -46,13 +44,13 @@ def add_shadow_options(
         choices=("drop", "flag"),
         default=umbra_default,
         help="epochs with the object in the Earth's umbra: drop them, or keep them flagged "
-        f"in the 'shadow' column ({umbra_help})",
+        "in the 'shadow' column" + (f" ({umbra_help})" if umbra_help else ""),
     )
     parser.add_argument(
         "--shadow-model",
         choices=MODELS,
         default="conical",
-        help="Earth-shadow model (default conical, with penumbra)",
+        help="Earth-shadow model (conical: with penumbra)",
     )
 
 

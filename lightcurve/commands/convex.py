@@ -21,14 +21,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 from pathlib import Path
 
 import pandas as pd
 
 from lightcurve import io
 from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
-from lightcurve.commands._args import float_vector
+from lightcurve.commands._args import add_progress_option, float_vector, show_progress
 
 NAME = "convex"
 HELP = "convex shape + spin inversion (pole, sidereal period, shape OBJ)"
@@ -38,61 +37,72 @@ ORDER = 42
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("files", nargs="+", metavar="FILE", help="observation files")
     parser.add_argument(
-        "--pole", type=float_vector(2), metavar="LAMBDA,BETA", help="starting pole, deg"
+        "--pole",
+        type=float_vector(2),
+        metavar="LAMBDA,BETA",
+        help="starting pole, deg (default: --poles starts over the sphere)",
     )
-    parser.add_argument("--period", type=float, metavar="HOURS", help="starting period, h")
     parser.add_argument(
-        "--period-range", nargs=2, type=float, metavar=("A", "B"), help="scan periods, h"
+        "--period",
+        type=float,
+        metavar="HOURS",
+        help="starting period, h (default: scan --period-range)",
     )
     parser.add_argument(
-        "--poles", type=int, default=6, metavar="N", help="pole starts without --pole (6)"
+        "--period-range",
+        nargs=2,
+        type=float,
+        metavar=("A", "B"),
+        help="scan periods, h (used without --period)",
+    )
+    parser.add_argument(
+        "--poles", type=int, default=6, metavar="N", help="pole starts without --pole"
     )
     parser.add_argument("--epoch", type=float, metavar="MJD", help="t0 (default: first epoch)")
-    parser.add_argument("--degree", type=int, default=6, help="harmonics degree = order (6)")
-    parser.add_argument("--rows", type=int, default=8, help="Gaussian-sphere rows (8: 512)")
-    parser.add_argument("--iterations", type=int, default=100, help="LM iterations at most (100)")
+    parser.add_argument("--degree", type=int, default=6, help="harmonics degree = order")
+    parser.add_argument("--rows", type=int, default=8, help="Gaussian-sphere rows (8: 512 facets)")
+    parser.add_argument(
+        "--iterations", type=int, default=100, help="Levenberg-Marquardt iterations at most"
+    )
     parser.add_argument(
         "--engine",
         choices=("numba", "torch"),
         default="numba",
-        help="model: compiled CPU kernels (numba, default) or torch (CUDA when available)",
+        help="model: compiled CPU kernels (numba) or torch (CUDA when available)",
     )
     parser.add_argument(
         "--compile",
         action="store_true",
         help="with --engine torch: torch.compile its kernel (~30 s of compilation)",
     )
+    add_progress_option(parser, "the period scan (--period-range)")
     parser.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="progress bar of the period scan on stderr (default: when stderr is a terminal)",
+        "--convexity", type=float, default=0.1, help="convexity regularisation weight"
     )
-    parser.add_argument("--convexity", type=float, default=0.1, help="regularisation (0.1)")
     parser.add_argument(
         "--phase",
         type=float_vector(3),
         default=(0.5, 0.1, -0.5),
         metavar="A,D,K",
-        help="phase function a, d (rad), k (1/rad) (0.5,0.1,-0.5)",
+        help="phase function a, d (rad), k (1/rad)",
     )
-    parser.add_argument("--lambert", type=float, default=0.1, help="Lambert weight c (0.1)")
+    parser.add_argument("--lambert", type=float, default=0.1, help="Lambert weight c")
     parser.add_argument(
         "--free",
         default="",
         metavar="a,d,k,c",
-        help="also fit these scattering parameters (default: fixed)",
+        help="also fit these scattering parameters (default: none, all fixed)",
     )
     parser.add_argument(
         "--dark-facet", action="store_true", help="close the shape with the dark facet"
     )
-    parser.add_argument("--refine", type=int, default=5, help="scan minima refined (5)")
+    parser.add_argument("--refine", type=int, default=5, help="scan minima refined")
     parser.add_argument(
         "--plots",
         action="store_true",
-        help="also draw OUT/shape.png and OUT/fit.png (matplotlib: about 1 s more)",
+        help="also draw DIR/shape.png and DIR/fit.png (matplotlib: about 1 s more)",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 
 
 def _settings(args: argparse.Namespace):
@@ -149,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
             poles,
             dataclasses.replace(SCAN_SETTINGS, engine=args.engine, compile=args.compile),
             epoch_mjd=epoch,
-            progress=sys.stderr.isatty() if args.progress is None else args.progress,
+            progress=show_progress(args),
         )
         solutions = refine(scan.local_minima(args.refine), data, settings)
         atomic_write_table(

@@ -52,9 +52,11 @@ _SPAN_DEFAULTS = {"min_elevation": 10.0, "max_sun_elevation": -12.0}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--start", help="first epoch, ISO-8601 UTC")
-    parser.add_argument("--duration", type=float, help="seconds")
-    parser.add_argument("--cadence", type=float, default=1.0, help="seconds (default 1)")
+    parser.add_argument(
+        "--start", help="first epoch, ISO-8601 UTC (required without --epochs-from)"
+    )
+    parser.add_argument("--duration", type=float, help="seconds (required without --epochs-from)")
+    parser.add_argument("--cadence", type=float, default=1.0, help="seconds")
     parser.add_argument(
         "--epochs-from",
         metavar="FILE",
@@ -73,14 +75,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--min-elevation",
         type=float,
-        help="deg (default 10 over a span; none with --epochs-from)",
+        help="deg (default: 10 over a span; none with --epochs-from)",
     )
     parser.add_argument(
         "--max-sun-elevation",
         type=float,
-        help="deg (default -12 over a span; none with --epochs-from)",
+        help="deg (default: -12 over a span; none with --epochs-from)",
     )
-    add_shadow_options(parser, None, "TLEs; default drop over a span, flag with --epochs-from")
+    add_shadow_options(parser, None, "TLEs; default: drop over a span, flag with --epochs-from")
     parser.add_argument("--name", help="object name for the header (default: from the TLE)")
     parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
 

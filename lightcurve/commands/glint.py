@@ -49,13 +49,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         choices=(0, 1, 2, 3),
         default=2,
-        help="degree of the local polynomial baseline (default 2; 1: running straight line)",
+        help="degree of the local polynomial baseline (1: running straight line)",
     )
     parser.add_argument(
         "--false-alarm",
         type=float,
         default=1e-3,
-        help="probability of a detection in a glint-free light curve (default 1e-3)",
+        help="probability of a detection in a glint-free light curve",
     )
     parser.add_argument(
         "--normal", action="store_true", help="estimate one panel's normal from the glints"
@@ -66,7 +66,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="inertial",
         help="frame in which the panel is fixed (body: needs q1..q4 columns)",
     )
-    parser.add_argument("--out", type=Path, help="output folder")
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR", help="output folder (default: print only)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

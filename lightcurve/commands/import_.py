@@ -47,8 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--time-column", required=True, metavar="C", help="name or 1-based position"
     )
-    parser.add_argument("--time-format", required=True, choices=TIME_FORMATS)
-    parser.add_argument("--time-scale", choices=TIME_SCALES, default="utc", help="default utc")
+    parser.add_argument(
+        "--time-format", required=True, choices=TIME_FORMATS, help="how the time column is written"
+    )
+    parser.add_argument(
+        "--time-scale", choices=TIME_SCALES, default="utc", help="time scale of the times"
+    )
     parser.add_argument("--mag-column", required=True, metavar="C", help="magnitudes, mag")
     errors = parser.add_mutually_exclusive_group(required=True)
     errors.add_argument("--err-column", metavar="C", help="1-sigma magnitude errors, mag")
@@ -72,23 +76,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--range-kind",
         choices=("slant", "height"),
         default="slant",
-        help="the R column of --alt-az-range-columns: the distance from the site (slant, "
-        "default) or the height above the WGS84 ellipsoid (height), km",
+        help="the R column of --alt-az-range-columns: the distance from the site (slant) "
+        "or the height above the WGS84 ellipsoid (height), km",
     )
     add_site(parser)
     parser.add_argument(
-        "--delimiter", choices=("auto", *DELIMITERS), default="auto", help="default auto"
+        "--delimiter", choices=("auto", *DELIMITERS), default="auto", help="column separator"
     )
     header = parser.add_mutually_exclusive_group()
-    header.add_argument("--header", dest="header", action="store_true", default=None)
+    header.add_argument(
+        "--header",
+        dest="header",
+        action="store_true",
+        default=None,
+        help="the first row is a header",
+    )
     header.add_argument(
         "--no-header",
         dest="header",
         action="store_false",
-        help="the first row is (not) a header (default: detected)",
+        help="the first row is data (default: detected)",
     )
     parser.add_argument("--decimal", choices=(".", ","), default=".", help="decimal mark")
-    add_shadow_options(parser, "flag", "default flag")
+    add_shadow_options(parser, "flag", "")
     parser.add_argument(
         "--drop-bad-rows", action="store_true", help="drop rows with bad values and list them"
     )

@@ -26,7 +26,12 @@ import sys
 import numpy as np
 
 from lightcurve.batch import run_batch
-from lightcurve.commands._args import float_vector, unit_quaternion
+from lightcurve.commands._args import (
+    add_progress_option,
+    float_vector,
+    show_progress,
+    unit_quaternion,
+)
 from lightcurve.pipeline import SUMMARY_KEYS, check_request, invert_file, resolve_shapes
 
 NAME = "invert"
@@ -37,38 +42,55 @@ ORDER = 30
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("inputs", nargs="+", metavar="INPUT", help="files or folders")
     parser.add_argument(
-        "--library", help="shape library folder (default: $LIGHTCURVE_LIBRARY or built-in)"
+        "--library",
+        metavar="DIR",
+        help="shape library folder (default: $LIGHTCURVE_LIBRARY or built-in)",
     )
     which = parser.add_mutually_exclusive_group()
     which.add_argument(
         "--shape", help="one candidate shape (default: the shape each file's header names)"
     )
-    which.add_argument("--shapes", help="comma-separated candidate shapes")
+    which.add_argument(
+        "--shapes", metavar="A,B,…", help="comma-separated candidate shapes (default: as --shape)"
+    )
     which.add_argument("--all-shapes", action="store_true", help="every shape of the library")
-    parser.add_argument("--method", choices=("ukf", "mmae", "pf"), required=True)
+    parser.add_argument(
+        "--method",
+        choices=("ukf", "mmae", "pf"),
+        required=True,
+        help="ukf: one shape, attitude UKF; mmae: a bank of UKFs, one per shape; pf: particle "
+        "filter over attitude, rates and shape",
+    )
     parser.add_argument(
         "--q0",
         type=unit_quaternion,
         metavar="q1,q2,q3,q4",
-        help="initial attitude guess at the first epoch, inertial→body",
+        help="initial attitude guess at the first epoch, inertial→body (default: searched "
+        "over all attitudes)",
     )
     parser.add_argument(
-        "--omega0", type=float_vector(3), metavar="wx,wy,wz", help="initial body-rate guess, deg/s"
+        "--omega0",
+        type=float_vector(3),
+        metavar="wx,wy,wz",
+        help="initial body-rate guess, deg/s (default: searched within --omega-max)",
     )
     parser.add_argument(
         "--attitude-sigma-deg",
         type=float,
         metavar="S",
-        help="1-sigma of the initial attitude guess, deg",
+        help="1-sigma of the initial attitude guess, deg (default: 20)",
     )
     parser.add_argument(
-        "--omega-sigma", type=float, metavar="S", help="1-sigma of the initial rate guess, deg/s"
+        "--omega-sigma",
+        type=float,
+        metavar="S",
+        help="1-sigma of the initial rate guess, deg/s (default: 0.2)",
     )
     parser.add_argument(
         "--omega-max",
         type=float,
         metavar="W",
-        help="bound on |omega| for the PF / global search, deg/s",
+        help="bound on |omega| for the PF / global search, deg/s (default: 5)",
     )
     parser.add_argument(
         "--init",
@@ -85,13 +107,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "sun-pointing, each with fitted offsets) against tumbling: summary keys "
         "attitude_mode, attitude_mode_probability, attitude_offsets_deg",
     )
-    parser.add_argument("--particles", type=int, metavar="N", help="particle count (pf)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--workers", type=int, default=1, help="parallel processes")
+    parser.add_argument(
+        "--particles", type=int, metavar="N", help="particle count (pf) (default: 2000)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--workers", type=int, default=1, metavar="N", help="parallel processes")
     parser.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="Dask distributed scheduler address, e.g. tcp://host:8786",
+        help="Dask distributed scheduler address, e.g. tcp://host:8786 (default: local processes)",
     )
     parser.add_argument("--overwrite", action="store_true", help="redo finished inputs")
     parser.add_argument(
@@ -99,7 +123,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="drop invalid rows of an input instead of failing it",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(parser, "the files and of the steps inside each (one worker)")
     parser.add_argument("--out", required=True, metavar="DIR", help="result folder")
 
 
@@ -137,7 +161,8 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         workers=args.workers,
         scheduler=args.scheduler,
-        progress=not args.no_progress,
+        progress=show_progress(args),
+        job_progress=True,
         summary_columns=SUMMARY_KEYS,
         error_template=template,
     )

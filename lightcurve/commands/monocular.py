@@ -43,12 +43,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve monocular``."""
     parser.add_argument("scenario", type=Path, help="scenario TOML file (docs/monocular.md)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--runs", type=int, default=1, help="Monte Carlo runs (default 1)")
+    parser.add_argument("--runs", type=int, default=1, help="Monte Carlo runs")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random stream")
     parser.add_argument(
         "--measurements",
         type=Path,
-        help="CSV with columns t (s), q1 q2 q3 q4 (attitude relative to the first frame)",
+        help="CSV with columns t (s), q1 q2 q3 q4 (attitude relative to the first frame) "
+        "(default: simulate the scenario)",
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
 

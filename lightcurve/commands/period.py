@@ -21,7 +21,7 @@ import pandas as pd
 
 from lightcurve import io
 from lightcurve.atomic import atomic_path, atomic_write_json, atomic_write_table, json_ready
-from lightcurve.commands._args import float_vector
+from lightcurve.commands._args import add_progress_option, float_vector, progress_bar
 
 NAME = "period"
 HELP = "rotation period: Fourier periodogram with aliases, sidereal correction"
@@ -42,16 +42,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: [int(v) for v in text.split(",")],
         default=[2, 3, 4, 5, 6],
         metavar="K,K,…",
-        help="harmonic orders tried (default 2,3,4,5,6)",
+        help="harmonic orders tried",
     )
-    parser.add_argument(
-        "--oversample", type=float, default=10.0, help="frequency oversampling (default 10)"
-    )
+    parser.add_argument("--oversample", type=float, default=10.0, help="frequency oversampling")
     parser.add_argument(
         "--pole",
         type=float_vector(2),
         metavar="LAMBDA,BETA",
-        help="spin axis, deg (frame of the files): scan the sidereal period",
+        help="spin axis, deg (frame of the files): scan the sidereal period (default: the "
+        "synodic period)",
     )
     parser.add_argument(
         "--glints",
@@ -62,9 +61,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--false-alarm",
         type=float,
         default=1e-3,
-        help="glint false-alarm probability for --glints (default 1e-3)",
+        help="glint false-alarm probability for --glints",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    add_progress_option(parser, "the period scan")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,9 +75,20 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--orders must be positive integers, got {args.orders}")
     observations = [io.read(path) for path in args.files]
     pole = None if args.pole is None else tuple(np.radians(args.pole))
-    result = period_search(
-        observations, args.range, orders=args.orders, oversample=args.oversample, pole=pole
-    )
+    with progress_bar(args, total=0, desc="period scan", unit="trial") as bar:
+
+        def report(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        result = period_search(
+            observations,
+            args.range,
+            orders=args.orders,
+            oversample=args.oversample,
+            pole=pole,
+            progress=report,
+        )
     summary = {"files": [str(p) for p in args.files], **result.summary()}
     glint_periods = []
     for obs in observations if args.glints else []:

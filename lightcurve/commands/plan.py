@@ -32,8 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve plan``."""
     parser.add_argument("scenario", type=Path, help="scenario TOML (docs/planner.md)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--runs", type=int, default=20, help="Monte Carlo runs (default 20)")
-    parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    parser.add_argument("--runs", type=int, default=20, help="Monte Carlo runs")
+    parser.add_argument("--seed", type=int, default=1, help="random seed")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,6 +1,6 @@
 """Plot an inversion result folder (DIR/<stem> written by `lightcurve invert`).
 
-Writes PNGs into the folder (or --out-dir): light_curve.png (measured vs fitted with
+Writes PNGs into the folder (or --out): light_curve.png (measured vs fitted with
 residuals), states.png (attitude and rate estimates with 3-sigma bands; errors against truth
 when the input has truth columns), probabilities.png (shape probabilities over time, for
 several candidate shapes) and modes.png (the particle filter's final attitude modes).
@@ -19,10 +19,17 @@ ORDER = 35
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("result", metavar="DIR/STEM", help="one input's result folder")
-    parser.add_argument("--out-dir", help="where to write the PNGs (default: the folder)")
+    parser.add_argument(
+        "--out",
+        "--out-dir",
+        dest="out",
+        metavar="DIR",
+        help="where to write the PNGs (default: the result folder; --out-dir is a deprecated "
+        "spelling)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    for path in plot_result(args.result, args.out_dir):
+    for path in plot_result(args.result, args.out):
         print(path)
     return 0

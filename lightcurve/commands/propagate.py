@@ -28,27 +28,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--inertia",
         type=inertia_tensor,
-        default=inertia_tensor(_NUTATION_INERTIA),
+        default=_NUTATION_INERTIA,  # a string default goes through the type
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
-        help="body-frame inertia (any unit; default: data/scenarios/nutation.toml)",
+        help="body-frame inertia, kg m² or any unit (only the ratios matter); the default is "
+        "the nutation scenario of docs/monocular.md",
     )
     parser.add_argument(
         "--q0",
         type=unit_quaternion,
         default=np.array([0.0, 0.0, 0.0, 1.0]),
         metavar="q1,q2,q3,q4",
-        help="initial attitude quaternion, scalar last, inertial→body (default identity)",
+        help="initial attitude quaternion, scalar last, inertial→body",
     )
     parser.add_argument(
         "--omega0",
         type=float_vector(3),
         default=np.array([5.0, 2.3, 3.5]),
         metavar="wx,wy,wz",
-        help="initial body rates in deg/s (default 5.0,2.3,3.5)",
+        help="initial body rates, deg/s",
     )
-    parser.add_argument("--duration", type=float, default=600.0, help="seconds (default 600)")
-    parser.add_argument("--step", type=float, default=60.0, help="output step in s (default 60)")
-    parser.add_argument("--out", help="also write the table to this CSV file")
+    parser.add_argument("--duration", type=float, default=600.0, help="seconds")
+    parser.add_argument("--step", type=float, default=60.0, help="output step, s")
+    parser.add_argument("--out", help="also write the table to this CSV file (default: print only)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -41,21 +41,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument(
         "--outlier-rate", type=float, default=0.0, help="fraction of optical fixes replaced by "
-        "gross errors (default 0)"
+        "gross errors"
     )  # fmt: skip
-    parser.add_argument(
-        "--outlier-size", type=float, default=2.0, help="gross error magnitude in m (default 2)"
-    )
+    parser.add_argument("--outlier-size", type=float, default=2.0, help="gross error magnitude, m")
     parser.add_argument(
         "--robust", choices=("huber", "none"), default="huber",
-        help="measurement update: Huber M-estimation (default) or plain Kalman",
+        help="measurement update: Huber M-estimation or plain Kalman",
     )  # fmt: skip
     parser.add_argument(
         "--mode",
         help="override the scenario's mode (a name from its [modes]: the shipped scenarios "
-        "define cooperative, non-cooperative and semi-cooperative)",
+        "define cooperative, non-cooperative and semi-cooperative) (default: the scenario's)",
     )
-    parser.add_argument("--seed", type=int, help="override the scenario's random seed")
+    parser.add_argument(
+        "--seed", type=int, help="override the scenario's random seed (default: the scenario's)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -67,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     action("list", "list the shapes of the library")
     p = action("show", "print facets, groups, materials, area, volume and inertia of a shape")
-    p.add_argument("name")
+    p.add_argument("name", help="shape name")
     p = action("add", "add a mesh file (OBJ/PLY/STL/GLB/GLTF/DAMIT) as a new shape")
     p.add_argument("name", help="shape name: letters, digits, '_', '.', '-'")
     p.add_argument("mesh", help="mesh file")
@@ -79,7 +79,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="BRDF parameter (repeatable), e.g. --param rd=0.4 --param rs=0.3",
     )
-    p.add_argument("--units", choices=("m", "km"), default="m", help="unit of the mesh file")
+    p.add_argument(
+        "--units", choices=("m", "km"), default="m", help="length unit of the mesh coordinates"
+    )
     p.add_argument(
         "--inertia",
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
@@ -95,23 +97,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--force", action="store_true", help="replace an existing shape")
     p = action("remove", "remove a shape")
-    p.add_argument("name")
+    p.add_argument("name", help="shape name")
     p = action("validate", "check every shape (or one): checksum, mesh, materials, tables")
-    p.add_argument("name", nargs="?")
+    p.add_argument("name", nargs="?", help="shape name (default: every shape)")
     p = action(
         "rebuild",
         "rebuild the visibility tables of every non-convex shape (or one), e.g. tables written "
         "in an older format; keeps each table's resolution and sampling",
     )
-    p.add_argument("name", nargs="?")
+    p.add_argument("name", nargs="?", help="shape name (default: every non-convex shape)")
     p = action("render", "write a PNG preview coloured by material")
-    p.add_argument("name")
+    p.add_argument("name", help="shape name")
     p.add_argument("--out", required=True, metavar="FILE.png", help="output PNG")
     p.add_argument(
         "--view",
         default="1,-1,0.6",
         metavar="x,y,z",
-        help="direction toward the viewer, body frame (default 1,-1,0.6)",
+        help="direction toward the viewer, body frame",
     )
     p.add_argument(
         "--sun",
@@ -163,8 +165,16 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     return 0
 
 
+#: Entries smaller than this fraction of the largest printed as 0 (round-off, not data).
+_ROUND_OFF = 1e-12
+
+
 def _matrix(matrix: np.ndarray) -> str:
-    return "\n".join("    " + "  ".join(f"{v:14.6g}" for v in row) for row in matrix)
+    """Rows of ``%14.6g`` numbers; round-off (``-2.89e-17`` beside 5902.7) printed as 0."""
+    matrix = np.asarray(matrix, dtype=float)
+    scale = float(np.max(np.abs(matrix), initial=0.0))
+    shown = np.where(np.abs(matrix) <= _ROUND_OFF * scale, 0.0, matrix)
+    return "\n".join("    " + "  ".join(f"{v:14.6g}" for v in row) for row in shown)
 
 
 def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:

@@ -16,8 +16,8 @@ are dropped and counted in the file's header.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
-data/telescopes/, e.g. half_metre; --condition TABLE.KEY=VALUE overrides one value and may
-be given alone to start from the 0.5 m defaults): extinction with airmass, seeing losses,
+a built-in telescope, e.g. half_metre; --condition TABLE.KEY=VALUE overrides one value and may be
+given alone to start from the 0.5 m defaults): extinction with airmass, seeing losses,
 sky, dark current, read noise, gain, scintillation and saturation, with the columns
 extinction_mag and saturated added (see docs/rendering.md).
 """
@@ -45,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("geometry", metavar="GEOMETRY", help="observation/geometry file")
     parser.add_argument("--shape", required=True, help="shape name in the library")
     parser.add_argument(
-        "--library", help="shape library folder (default: $LIGHTCURVE_LIBRARY or built-in)"
+        "--library",
+        metavar="DIR",
+        help="shape library folder (default: $LIGHTCURVE_LIBRARY or built-in)",
     )
     parser.add_argument(
         "--q0",
@@ -64,13 +66,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--profile",
         choices=PROFILES,
         default="torque-free",
-        help="attitude profile (default torque-free: tumbling from --q0/--omega0)",
+        help="attitude profile (torque-free: tumbling from --q0/--omega0)",
     )
     parser.add_argument(
         "--offset-deg",
         type=float_vector(3),
         metavar="ROLL,PITCH,YAW",
-        help="fixed 3-2-1 offset of a stabilised profile from its frame, deg (default 0,0,0)",
+        help="fixed 3-2-1 offset of a stabilised profile from its frame, deg (default: 0,0,0)",
     )
     parser.add_argument(
         "--yaw-steering",
@@ -81,10 +83,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--inertia",
         type=inertia_tensor,
         metavar="Jxx,Jyy,Jzz[,Jxy,Jxz,Jyz]",
-        help="body-frame inertia (default: the shape's)",
+        help="body-frame inertia, kg m² (only the ratios matter) (default: the shape's)",
     )
     noise = parser.add_mutually_exclusive_group()
-    noise.add_argument("--noise-mag", type=float, metavar="SIGMA", help="Gaussian noise, mag")
+    noise.add_argument(
+        "--noise-mag", type=float, metavar="SIGMA", help="Gaussian noise, mag (default: none)"
+    )
     noise.add_argument(
         "--ccd",
         nargs="*",
@@ -97,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--conditions",
         metavar="FILE.toml|NAME",
         help="observing conditions: a TOML file with [telescope] [detector] [site] [sky] "
-        "[photometry] tables, or a name in data/telescopes/ (half_metre)",
+        "[photometry] tables, or a built-in telescope name (half_metre)",
     )
     parser.add_argument(
         "--condition",
@@ -107,8 +111,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="override one observing condition (repeatable), e.g. site.seeing_fwhm_arcsec=1.5 "
         "or photometry.saturated=drop; alone, starts from the 0.5 m defaults",
     )
-    parser.add_argument("--shadows", choices=SHADOW_MODES, default="auto")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    parser.add_argument(
+        "--shadows",
+        choices=SHADOW_MODES,
+        default="auto",
+        help="self-shadowing: none, the shape's visibility table, ray casting, or auto "
+        "(the table when the shape has one, else none)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="noise seed")
     parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
 
 

@@ -33,9 +33,9 @@ ORDER = 62
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve stereo``."""
     parser.add_argument("scenario", type=Path, help="scenario TOML file")
-    parser.add_argument("--runs", type=int, default=200, help="Monte Carlo runs (default 200)")
+    parser.add_argument("--runs", type=int, default=200, help="Monte Carlo runs")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
 
 
 def run(args: argparse.Namespace) -> int:

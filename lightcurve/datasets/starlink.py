@@ -1,9 +1,10 @@
 """Starlink v1.5 brightness observations (Pomenis, Mount Lemmon) and the two-surface model.
 
 Source: Fankhauser, Askari & Tyson, "Satellite Optical Brightness" (2023), MIT license;
-files in ``data/starlink/``. The observations give the UTC time, the satellite height
-above the Earth (km), its topocentric altitude and azimuth (degrees) and the measured AB
-magnitude at Mount Lemmon (32.4434° N, 110.7881° W, ~2790 m).
+files in ``data/starlink/`` of a checkout (a real data set, not package data). The
+observations give the UTC time, the satellite height above the Earth (km), its topocentric
+altitude and azimuth (degrees) and the measured AB magnitude at Mount Lemmon (32.4434° N,
+110.7881° W, ~2790 m).
 
 The brightness model of the paper (``starlink_surface_descriptions.txt``): two flat
 surfaces, the chassis underside (3.64 m², normal ``(0, 0, −1)`` pointing to nadir) and the
@@ -11,7 +12,7 @@ solar array (22.68 m², normal ``(0, 1, 0)``, perpendicular to the chassis and t
 the Sun). In the body frame used here ``+z`` is the local vertical (away from the Earth's
 centre; the geocentric vertical, within 0.2° of the geodetic one) and ``+y`` is the Sun's
 direction projected on the horizontal plane. Materials are the ``starlink-chassis`` and
-``starlink-solar-array`` presets of ``data/materials.toml`` (two-lobe BRDFs), fitted to the
+``starlink-solar-array`` presets of ``brdf/data/materials.toml`` (two-lobe BRDFs), fitted to the
 laboratory BRDF tables of the same paper — nothing is tuned to the brightness observations;
 ``ONE_LOBE_MATERIALS`` names the earlier one-lobe (Cook–Torrance) fits of the same tables.
 """
@@ -56,7 +57,7 @@ POMENIS_PATH = (
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon (Pomenis)")
 CHASSIS_AREA_M2 = 3.64
 SOLAR_ARRAY_AREA_M2 = 22.68
-#: Presets (``data/materials.toml``) of the chassis and the solar array: the two-lobe fits.
+#: Presets (``brdf/data/materials.toml``) of the chassis and the solar array: the two-lobe fits.
 MATERIALS = ("starlink-chassis", "starlink-solar-array")
 #: The best one-lobe fits (Cook–Torrance) of the same lab tables.
 ONE_LOBE_MATERIALS = ("starlink-chassis-cook-torrance", "starlink-solar-array-cook-torrance")
@@ -111,12 +112,12 @@ def starlink_model(materials: tuple[str, str] = MATERIALS) -> FacetModel:
     Parameters
     ----------
     materials : (str, str)
-        Preset names (``data/materials.toml``) of the chassis and the solar array.
+        Preset names (``brdf/data/materials.toml``) of the chassis and the solar array.
     """
     presets = load_presets()
     unknown = [name for name in materials if name not in presets]
     if unknown:
-        raise ValueError(f"no material preset(s) {', '.join(unknown)} in data/materials.toml")
+        raise ValueError(f"no material preset(s) {', '.join(unknown)} in brdf/data/materials.toml")
     chassis, solar_array = (presets[name] for name in materials)
     parts = [
         ("chassis", np.array([0.0, 0.0, -1.0]), CHASSIS_AREA_M2, chassis),

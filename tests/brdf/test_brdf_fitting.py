@@ -135,7 +135,7 @@ def test_starlink_two_lobe_fit_beats_every_one_lobe_model(material):
     assert np.max(np.abs(best.residuals[near])) > 2.5
     assert np.max(np.abs(two_lobe.residuals[near])) < 0.51
     assert np.sqrt(np.mean(two_lobe.residuals[near] ** 2)) < 0.31
-    # The preset in data/materials.toml is this fit.
+    # The preset in brdf/data/materials.toml is this fit.
     preset = brdf.materials.load_presets()[f"starlink-{material.replace('_', '-')}"]
     assert preset.model == "two-lobe"
     for name in ("rd", "rb", "ab", "mn"):

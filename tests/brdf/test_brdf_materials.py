@@ -1,4 +1,4 @@
-"""Material presets in data/materials.toml."""
+"""Material presets in brdf/data/materials.toml."""
 
 import pytest
 

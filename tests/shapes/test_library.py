@@ -2,6 +2,7 @@
 
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,7 +41,7 @@ def builtin():
 
 def test_builtin_library_contents(builtin):
     assert builtin.names() == BUILTIN
-    assert builtin_library_path().name == "shapes"
+    assert builtin_library_path() == Path(shapes.__file__).parent / "data"  # package data
     assert (builtin_library_path() / "LICENSE-SBGAT.md").is_file()
     for name in BUILTIN:
         entry = builtin.info(name)
