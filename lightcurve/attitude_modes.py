@@ -29,6 +29,11 @@ on a night of GEO photometry), and a tumbling object cannot be fitted by any pro
 The hypotheses' prior probabilities are ½ for tumbling and ½ shared equally by the
 stabilised profiles (shapes equally likely); the posterior of a mode sums over shapes.
 
+A direction of a fitted offset whose Laplace 1σ exceeds ``weak_sigma_deg`` (the turn about
+the Sun line of a Sun-pointing body whose lit face is perpendicular to it, say) is reported
+as a weak axis with its 95 % profile-likelihood interval (:class:`WeakAxis`), so the offset
+is a point across such axes and an interval along them.
+
 A stabilised hypothesis must also pass a consistency test: ``χ²`` at most the
 ``consistency_level`` quantile of ``χ²`` with ``n − k`` degrees of freedom. One that fails
 is discarded (a profile that does not reproduce the light curve to within its noise is no
