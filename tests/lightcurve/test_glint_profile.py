@@ -122,12 +122,17 @@ def test_nadir_profile_needs_the_object_columns(flashing, tmp_path, capsys):
 
 
 def test_profile_attitudes_between_epochs_match_the_profile_there(window):
-    """Attitudes interpolated to the odd samples from the even ones agree with the profile
-    evaluated there (the nadir frame turns uniformly)."""
+    """Attitudes interpolated to the odd samples from the even ones (4 min apart) agree with
+    the profile evaluated there: to rounding for the nadir frame, which turns uniformly, and
+    within 0.05° where the turn is not uniform (yaw steering, Sun-pointing)."""
     every_other = window.table.iloc[::2].reset_index(drop=True)
     coarse = type(window)(every_other, dict(window.meta))
     odd = window.times[1:-1:2]
-    for profile, yaw in (("nadir", False), ("nadir", True), ("sun-pointing", False)):
+    for profile, yaw, limit in (
+        ("nadir", False, 1e-6),
+        ("nadir", True, 0.05),
+        ("sun-pointing", False, 0.05),
+    ):
         q = profile_attitudes_at(coarse, profile, odd, offset_deg=OFFSET, yaw_steering=yaw)
         exact = profile_attitude(
             profile,
@@ -137,7 +142,7 @@ def test_profile_attitudes_between_epochs_match_the_profile_there(window):
             yaw_steering=yaw,
             offset=offset_quaternion(OFFSET),
         )[1:-1:2]
-        assert np.degrees(np.max(attitude_angle(q, exact))) < 1e-3
+        assert np.degrees(np.max(attitude_angle(q, exact))) < limit
     with pytest.raises(ValueError, match="outside the file's span"):
         profile_attitudes_at(coarse, "inertial", [coarse.times[-1] + 60.0])
 
