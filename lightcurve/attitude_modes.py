@@ -29,6 +29,11 @@ on a night of GEO photometry), and a tumbling object cannot be fitted by any pro
 The hypotheses' prior probabilities are ½ for tumbling and ½ shared equally by the
 stabilised profiles (shapes equally likely); the posterior of a mode sums over shapes.
 
+A direction of a fitted offset whose Laplace 1σ exceeds ``weak_sigma_deg`` (the turn about
+the Sun line of a Sun-pointing body whose lit face is perpendicular to it, say) is reported
+as a weak axis with its 95 % profile-likelihood interval (:class:`WeakAxis`), so the offset
+is a point across such axes and an interval along them.
+
 A stabilised hypothesis must also pass a consistency test: ``χ²`` at most the
 ``consistency_level`` quantile of ``χ²`` with ``n − k`` degrees of freedom. One that fails
 is discarded (a profile that does not reproduce the light curve to within its noise is no
@@ -62,6 +67,7 @@ __all__ = [
     "MODE_HYPOTHESES",
     "ModeHypothesis",
     "ModeIdentification",
+    "WeakAxis",
     "identify_attitude_mode",
     "offset_error_deg",
 ]
@@ -76,6 +82,43 @@ MODE_HYPOTHESES = {
 TUMBLING = "tumbling"
 _LOG_SO3_VOLUME = math.log(8.0 * math.pi**2)
 _ATTITUDE_PRECISION = 1.0 / math.pi**2
+#: ``χ²₁`` quantile of the weak axes' 95 % profile-likelihood intervals.
+_INTERVAL_CHI2 = float(chi2_distribution.ppf(0.95, 1))
+
+
+@dataclass
+class WeakAxis:
+    """A direction of a fitted offset that the light curve pins down poorly.
+
+    The offset is ``δ = δ̂ + t v`` along the axis: ``u`` the unit eigenvector of the
+    posterior covariance ``C`` (small-angle rotation axis, body axes of the profile frame),
+    ``v = C u / (uᵀ C u)`` the line along which the other components follow ``t`` at their
+    conditional optimum (the profile line of a quadratic posterior).
+
+    Attributes
+    ----------
+    axis : (3,) numpy.ndarray
+        ``u`` (unit, body axes).
+    sigma_deg : float
+        Laplace 1σ along ``u`` (deg).
+    interval_deg : (2,) numpy.ndarray
+        ``[t_lo, t_hi]`` (deg, relative to the fitted offset): the stretch of the profile
+        line around the best point where ``−2 ln`` posterior stays within
+        ``χ²₁(0.95) = 3.84`` of its minimum (the 95 % profile-likelihood interval, Wilks'
+        theorem; not symmetric, and wider than ``±2σ`` where the ``χ²`` valley is
+        flat-bottomed), clipped to ``±3 σ_off``.
+    """
+
+    axis: np.ndarray
+    sigma_deg: float
+    interval_deg: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "axis": [float(v) for v in self.axis],
+            "sigma_deg": float(self.sigma_deg),
+            "interval_deg": [float(v) for v in self.interval_deg],
+        }
 
 
 @dataclass
@@ -99,6 +142,9 @@ class ModeHypothesis:
         ``inertial``: of the fitted attitude from the inertial axes); None for tumbling.
     offset_sigma_deg : (3,) numpy.ndarray or None
         1σ of the offset's small-angle components (deg, body axes).
+    weak_axes : list of WeakAxis
+        Directions of the offset the light curve pins down worse than ``weak_sigma_deg``
+        (empty for tumbling).
     quaternion : (4,) numpy.ndarray
         Attitude at the last epoch (inertial → body).
     omega_rad_s : (3,) numpy.ndarray
@@ -115,6 +161,7 @@ class ModeHypothesis:
     offset_sigma_deg: np.ndarray | None
     quaternion: np.ndarray
     omega_rad_s: np.ndarray
+    weak_axes: list[WeakAxis] = field(default_factory=list)
     probability: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
@@ -131,6 +178,7 @@ class ModeHypothesis:
             "probability": float(self.probability),
             "offsets_deg": listed(self.offsets_deg),
             "offset_sigma_deg": listed(self.offset_sigma_deg),
+            "offset_weak_axes": [w.to_dict() for w in self.weak_axes],
         }
 
 
@@ -169,12 +217,19 @@ class ModeIdentification:
 
     def summary(self) -> dict[str, Any]:
         """The summary keys ``attitude_mode``, ``attitude_mode_probability``,
-        ``attitude_offsets_deg`` and the details."""
-        offsets = self.best.offsets_deg if self.mode != TUMBLING else None
+        ``attitude_offsets_deg``, ``attitude_offset_sigma_deg``, ``attitude_offset_weak_axes``
+        and the details."""
+        stabilised = self.mode != TUMBLING
+        offsets = self.best.offsets_deg if stabilised else None
+        sigma = self.best.offset_sigma_deg if stabilised else None
         return {
             "attitude_mode": self.mode,
             "attitude_mode_probability": float(self.probability),
             "attitude_offsets_deg": None if offsets is None else [float(v) for v in offsets],
+            "attitude_offset_sigma_deg": None if sigma is None else [float(v) for v in sigma],
+            "attitude_offset_weak_axes": [w.to_dict() for w in self.best.weak_axes]
+            if stabilised
+            else [],
             "attitude_mode_shape": self.best.shape,
             "attitude_mode_probabilities": {k: float(v) for k, v in self.probabilities.items()},
             "attitude_hypotheses": [h.to_dict() for h in self.hypotheses],
@@ -249,6 +304,56 @@ def _fit_profile(
     return delta, float(r @ r), j.T @ j
 
 
+def _objective(fit: _ProfileFit, delta: np.ndarray, prior_sigma: float | None) -> np.ndarray:
+    """``−2 ln`` posterior (up to a constant) of offsets ``delta (..., 3)``: ``χ²`` plus the
+    normal prior's ``|δ|²/σ²``."""
+    r = fit.residuals(delta)
+    value = np.sum(r**2, axis=-1)
+    return value if prior_sigma is None else value + np.sum(delta**2, axis=-1) / prior_sigma**2
+
+
+def _weak_axes(
+    fit: _ProfileFit,
+    delta: np.ndarray,
+    covariance: np.ndarray,
+    prior_sigma: float | None,
+    weak_sigma: float,
+    half_width: float,
+    restart: bool,
+    step: float = math.radians(0.25),
+) -> tuple[list[WeakAxis], np.ndarray | None]:
+    """Scan the profile line of every direction whose Laplace σ exceeds ``weak_sigma`` (rad)
+    over ``±half_width`` (rad) in one batched render each (:class:`WeakAxis`).
+
+    Returns the weak axes, and (with ``restart``) a better offset when a scan finds the
+    posterior lower by more than ½ somewhere on the line (the fit stopped in a side valley;
+    refit from there).
+    """
+    variances, vectors = np.linalg.eigh(covariance)
+    t = np.linspace(-half_width, half_width, 2 * math.ceil(half_width / step) + 1)
+    centre = len(t) // 2
+    axes = []
+    for variance, u in zip(variances, vectors.T, strict=True):
+        if not math.sqrt(max(variance, 0.0)) > weak_sigma:
+            continue
+        u = u * np.sign(u[np.argmax(np.abs(u))])  # eigenvector sign made reproducible
+        line = covariance @ u / variance
+        probes = delta + t[:, None] * line
+        value = _objective(fit, probes, prior_sigma)
+        best = int(np.argmin(value))
+        if restart and value[best] < value[centre] - 0.5:
+            return [], probes[best]
+        inside = value - value[best] <= _INTERVAL_CHI2
+        lo = hi = best
+        while lo > 0 and inside[lo - 1]:
+            lo -= 1
+        while hi < len(t) - 1 and inside[hi + 1]:
+            hi += 1
+        interval = np.degrees([t[lo], t[hi]])
+        axes.append(WeakAxis(u, math.degrees(math.sqrt(variance)), interval))
+    return axes, None
+
+
 def _stabilised(
     model: PhotometricModel,
     shape: int,
@@ -261,6 +366,7 @@ def _stabilised(
     search_candidates: int,
     rng: np.random.Generator,
     extra_starts: Sequence[np.ndarray],
+    weak_sigma: float,
 ) -> ModeHypothesis:
     profile, yaw = MODE_HYPOTHESES[label]
     n = len(model)
@@ -284,8 +390,8 @@ def _stabilised(
             fit = _ProfileFit(model, shape, q_ref, q_start)
             fits.append((fit, *_fit_profile(fit, np.zeros((1, 3)), None)))
         fit, delta, chi2, information = min(fits, key=lambda f: f[2])
+        prior_sigma = None
         precision = np.eye(3) * _ATTITUDE_PRECISION
-        log_prior = math.log(symmetry_order) - _LOG_SO3_VOLUME
     else:
         fit = _ProfileFit(model, shape, q_ref, identity)
         # Glints make the χ² surface rough within a few degrees: screen offsets drawn in
@@ -298,12 +404,32 @@ def _stabilised(
         )
         starts = probes[np.argsort(cost)[:4]]
         delta, chi2, information = _fit_profile(fit, starts, offset_sigma)
+        prior_sigma = offset_sigma
         precision = np.eye(3) / offset_sigma**2
-        log_prior = (
-            -1.5 * math.log(2 * math.pi * offset_sigma**2)
-            - 0.5 * float(delta @ delta) / offset_sigma**2
+    # Directions the light curve pins down poorly (e.g. the turn about the Sun line of a
+    # Sun-pointing body whose lit faces are nearly perpendicular to it): scan their profile
+    # lines; a lower point on a line restarts the fit from there (at most twice).
+    for attempt in range(3):
+        hessian = information + precision
+        weak, better = _weak_axes(
+            fit,
+            delta,
+            np.linalg.inv(hessian),
+            prior_sigma,
+            weak_sigma,
+            3.0 * offset_sigma,
+            restart=attempt < 2,
         )
-    hessian = information + precision
+        if better is None:
+            break
+        delta, chi2, information = _fit_profile(fit, np.array([better]), prior_sigma)
+    if prior_sigma is None:
+        log_prior = math.log(symmetry_order) - _LOG_SO3_VOLUME
+    else:
+        log_prior = (
+            -1.5 * math.log(2 * math.pi * prior_sigma**2)
+            - 0.5 * float(delta @ delta) / prior_sigma**2
+        )
     log_evidence = _log_evidence(chi2, log_prior, hessian)
     q = fit.attitudes(delta)
     q_offset = quaternion_multiply(
@@ -321,6 +447,7 @@ def _stabilised(
         offset_sigma_deg=np.rad2deg(np.sqrt(np.clip(np.diag(covariance), 0, None))),
         quaternion=q[-1],
         omega_rad_s=body_rates(model.times, q)[-1],
+        weak_axes=weak,
     )
 
 
@@ -402,6 +529,7 @@ def identify_attitude_mode(
     *,
     omega_max: float = math.radians(5.0),
     offset_sigma_deg: float = 10.0,
+    weak_sigma_deg: float = 1.0,
     consistency_level: float = 0.999,
     search_candidates: int = 4096,
     max_epochs: int = 90,
@@ -427,6 +555,9 @@ def identify_attitude_mode(
         Radius of the tumbling rate prior (rad/s).
     offset_sigma_deg : float
         1σ per axis of the profile offsets' prior (deg).
+    weak_sigma_deg : float
+        Offset directions whose Laplace 1σ exceeds this (deg) are reported as weak axes
+        with a profile-likelihood interval (:class:`WeakAxis`).
     consistency_level : float
         Quantile of the consistency test.
     search_candidates : int
@@ -482,6 +613,7 @@ def identify_attitude_mode(
                     search_candidates,
                     rng,
                     extra,
+                    math.radians(weak_sigma_deg),
                 )
             )
         if tumbling is not None:

@@ -205,6 +205,10 @@ def test_mode_identification_tells_stabilised_from_tumbling(night):
     assert calm.mode == "nadir" and calm.probability >= 0.9 and not calm.none_fits
     error = attitude_angle(offset_quaternion(calm.offsets_deg), offset_quaternion(offset))
     assert math.degrees(error) < 2.0
+    keys = calm.summary()
+    assert len(keys["attitude_offset_sigma_deg"]) == 3
+    for weak in keys["attitude_offset_weak_axes"]:  # each interval holds the fitted point
+        assert weak["sigma_deg"] > 1.0 and weak["interval_deg"][0] <= 0 <= weak["interval_deg"][1]
     assert spinning.mode == TUMBLING and spinning.probability >= 0.9
     summary = spinning.summary()
     assert summary["attitude_mode"] == TUMBLING and summary["attitude_offsets_deg"] is None
