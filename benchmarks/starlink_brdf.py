@@ -76,11 +76,7 @@ def per_incidence_rms(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str
     }
 
 
-def mirror_distance_deg(table: brdf.BRDFTable) -> np.ndarray:
-    """Angle (deg) between each scatter direction and the mirror direction of its source."""
-    light, view = table.directions()
-    mirror = light * np.array([-1.0, -1.0, 1.0])
-    return np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+mirror_distance_deg = brdf.mirror_distance_deg
 
 
 def fit(

@@ -36,7 +36,7 @@ from brdf._geometry import cosines, tangent_cosines
 from brdf.registry import BRDF, BRDFParameterError, ModelInfo, describe, get
 from brdf.tables import BRDFTable
 
-__all__ = ["FitResult", "fit", "mirror_band_weights"]
+__all__ = ["FitResult", "fit", "mirror_band_weights", "mirror_distance_deg"]
 
 MIRROR_BANDS_DEG = (1.0, 3.0, 10.0, 30.0, 90.0)
 
@@ -376,6 +376,16 @@ def _row_weights(
     return np.sqrt(chosen / chosen.mean())
 
 
+def mirror_distance_deg(table: BRDFTable) -> np.ndarray:
+    """Angle (deg) between each row's scatter direction and the mirror direction of its source.
+
+    The mirror direction reflects the direction to the source about the sample normal ``z``.
+    """
+    light, view = table.directions()
+    mirror = light * np.array([-1.0, -1.0, 1.0])
+    return np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+
+
 def mirror_band_weights(
     table: BRDFTable, edges_deg: tuple[float, ...] = MIRROR_BANDS_DEG
 ) -> np.ndarray:
@@ -405,10 +415,7 @@ def mirror_band_weights(
     edges = np.asarray(edges_deg, dtype=float)
     if edges.ndim != 1 or edges.size == 0 or np.any(np.diff(edges) <= 0) or edges[0] <= 0:
         raise ValueError(f"band edges {edges_deg!r} must be positive and increasing")
-    light, view = table.directions()
-    mirror = light * np.array([-1.0, -1.0, 1.0])
-    distance = np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
-    band = np.searchsorted(edges + 1e-9, distance)
+    band = np.searchsorted(edges + 1e-9, mirror_distance_deg(table))
     _, incidence = np.unique(
         np.stack([table.zenith_in, table.azimuth_in], axis=-1), axis=0, return_inverse=True
     )

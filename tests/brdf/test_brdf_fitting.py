@@ -110,9 +110,7 @@ def _starlink(material):
 
 
 def _mirror_distance_deg(table, used):
-    light, view = table.directions()
-    cosine = np.sum(light * np.array([-1.0, -1.0, 1.0]) * view, axis=-1)[used]
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    return brdf.mirror_distance_deg(table)[used]
 
 
 def tilted_table(model, tilt_deg, noise_dex, rng):
@@ -159,9 +157,9 @@ def test_mirror_band_weights_share_weight_equally_per_band_and_incidence():
     table = tilted_table(brdf.get("lambert", rd=0.5), 0.0, 0.0, np.random.default_rng(0))
     weights = brdf.mirror_band_weights(table, edges_deg=(1.0, 10.0))
     assert weights.mean() == pytest.approx(1.0)
-    light, view = table.directions()
-    mirror = light * np.array([-1.0, -1.0, 1.0])
-    distance = np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+    distance = brdf.mirror_distance_deg(table)
+    # The scans' mirror directions lie on the 0.5° grid: distance is |scatter − incidence|.
+    assert np.allclose(distance, np.abs(table.zenith_out - table.zenith_in), atol=1e-6)
     band = (distance > 1.0 + 1e-9).astype(int) + (distance > 10.0 + 1e-9)
     totals = [
         weights[(table.zenith_in == angle) & (band == b)].sum()
