@@ -7,10 +7,19 @@ horizon rather than a measurement; they are excluded. Each model is fitted in lo
 (`brdf.fit`), Ashikhmin–Shirley isotropically (``nv`` tied to ``nu``: in-plane data do not
 constrain anisotropy).
 
-Prints JSON (RMS log10 residuals per model and per incidence, the residuals at the points
-within 1° of the mirror direction, parameters with 1σ, how much better the two-lobe model fits
-than the best one-lobe model, timings, machine info) and writes the polar plots
-``docs/figures/starlink_<material>_brdf.png``.
+Every model is fitted under the same rule (docs/brdf.md, "Fitting lab tables"): each band of
+distance from the mirror direction (≤ 1°, 1–3°, 3–10°, 10–30°, 30–90°, > 90°) of each
+incidence gets equal total weight (`brdf.mirror_band_weights`), and the tilt of the sample
+normal in the plane of incidence, an alignment offset of the lab set-up, is fitted with the
+material (``fit_tilt``). Its 1σ is given twice: from the fit's Jacobian, and from a
+leave-one-incidence-out jackknife (robust to residuals correlated along a scan). For
+comparison each model is also fitted unweighted with no tilt (``plain``).
+
+Prints JSON (weighted and plain RMS log10 residuals per model and per incidence, the residuals
+at the points within 1° of the mirror direction, the fitted tilt, parameters with 1σ, how much
+better the two-lobe model fits than the best one-lobe model under the same treatment, timings,
+machine info) and writes the polar plots ``docs/figures/starlink_<material>_brdf.png`` and
+``docs/figures/starlink_<material>_mirror.png``.
 
 Usage (from the repository root): ``python -m benchmarks.starlink_brdf [--figures DIR]
 [--starts N]``
@@ -67,11 +76,48 @@ def per_incidence_rms(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str
     }
 
 
-def mirror_distance_deg(table: brdf.BRDFTable) -> np.ndarray:
-    """Angle (deg) between each scatter direction and the mirror direction of its source."""
+mirror_distance_deg = brdf.mirror_distance_deg
+
+
+def fit(
+    model_name: str, table: brdf.BRDFTable, starts: int, treated: bool = True
+) -> brdf.FitResult:
+    """``model_name`` fitted under the benchmark's rule (band weights, fitted tilt) or plainly."""
+    options = dict(FIT_OPTIONS.get(model_name, {}))
+    if treated:
+        options.update(weights=brdf.mirror_band_weights(table), fit_tilt=True)
+    return brdf.fit(model_name, table, starts=starts, **options)
+
+
+def jackknife_tilt(model_name: str, table: brdf.BRDFTable, starts: int) -> float:
+    """Leave-one-incidence-out jackknife 1σ (deg) of the fitted tilt."""
+    incidences = np.unique(table.zenith_in)
+    tilts = np.array(
+        [
+            fit(model_name, table.select(table.zenith_in != angle), starts).tilt
+            for angle in incidences
+        ]
+    )
+    count = tilts.size
+    return float(np.sqrt((count - 1) / count * np.sum((tilts - tilts.mean()) ** 2)))
+
+
+def untilted(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str, float]:
+    """Fit statistics of ``result``'s material with the sample normal on ``z`` (no tilt)."""
     light, view = table.directions()
-    mirror = light * np.array([-1.0, -1.0, 1.0])
-    return np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+    used = result.used
+    model = result.brdf()(
+        np.array([0.0, 0.0, 1.0]), light[used], view[used], tangent=np.array([1.0, 0.0, 0.0])
+    )
+    residuals = np.log10(np.maximum(model, 1e-12)) - np.log10(table.value[used])
+    weights = brdf.mirror_band_weights(table)[used]
+    near = mirror_distance_deg(table)[used] <= MIRROR_DEG + 1e-9
+    return {
+        "rms_dex": float(np.sqrt(np.sum(weights * residuals**2) / np.sum(weights))),
+        "rms_dex_unweighted": float(np.sqrt(np.mean(residuals**2))),
+        "near_mirror_max_abs_dex": float(np.max(np.abs(residuals[near]))),
+        "near_mirror_rms_dex": float(np.sqrt(np.mean(residuals[near] ** 2))),
+    }
 
 
 def near_mirror(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str, float]:
@@ -86,7 +132,9 @@ def near_mirror(table: brdf.BRDFTable, result: brdf.FitResult) -> dict[str, floa
     }
 
 
-def model_curve(model: brdf.BRDF, incidence_deg: float, zenith_out_deg: np.ndarray) -> np.ndarray:
+def model_curve(
+    model: brdf.BRDF, incidence_deg: float, zenith_out_deg: np.ndarray, tilt_deg: float = 0.0
+) -> np.ndarray:
     table = brdf.BRDFTable.from_columns(
         {
             "zenith_in": np.full_like(zenith_out_deg, incidence_deg),
@@ -97,7 +145,9 @@ def model_curve(model: brdf.BRDF, incidence_deg: float, zenith_out_deg: np.ndarr
         }
     )
     light, view = table.directions()
-    return model(np.array([0.0, 0.0, 1.0]), light, view, tangent=np.array([1.0, 0.0, 0.0]))
+    angle = np.radians(tilt_deg)
+    normal = np.array([np.sin(angle), 0.0, np.cos(angle)])
+    return model(normal, light, view, tangent=np.array([np.cos(angle), 0.0, -np.sin(angle)]))
 
 
 def radius(values: np.ndarray) -> np.ndarray:
@@ -132,7 +182,7 @@ def plot(name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path
         axis.set_yticks(ticks - LOG_FLOOR, [f"$10^{{{int(t)}}}$" for t in ticks], fontsize=7)
         for model_name, result in fits.items():
             colour, style = STYLES[model_name]
-            values = model_curve(result.brdf(), incidence, zenith_fine)
+            values = model_curve(result.brdf(), incidence, zenith_fine, result.tilt)
             axis.plot(
                 np.radians(zenith_fine),
                 radius(values),
@@ -160,7 +210,7 @@ def plot(name: str, table: brdf.BRDFTable, fits: dict[str, brdf.FitResult], path
     figure.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     figure.suptitle(
         f"Starlink v1.5 {name.replace('_', ' ')}: in-plane BRDF (sr⁻¹, log radius) vs "
-        "scatter zenith; orange arrow = Sun",
+        "scatter zenith; orange arrow = Sun; fits with fitted sample tilt",
         fontsize=10,
     )
     figure.subplots_adjust(bottom=0.12, top=0.9, hspace=0.05, wspace=0.15)
@@ -178,7 +228,7 @@ def plot_mirror(
         rows = (table.zenith_in == incidence) & (np.abs(table.zenith_out - incidence) <= 4.0)
         for model_name, result in fits.items():
             colour, style = STYLES[model_name]
-            values = model_curve(result.brdf(), incidence, incidence + offsets)
+            values = model_curve(result.brdf(), incidence, incidence + offsets, result.tilt)
             axis.semilogy(
                 offsets,
                 values,
@@ -234,38 +284,62 @@ def main(argv: list[str] | None = None) -> int:
         fits, entries = {}, {}
         for model_name in brdf.available():
             start = time.perf_counter()
-            result = brdf.fit(
-                model_name, table, starts=args.starts, **FIT_OPTIONS.get(model_name, {})
-            )
+            result = fit(model_name, table, args.starts)
             elapsed = time.perf_counter() - start
+            plain = fit(model_name, table, args.starts, treated=False)
             fits[model_name] = result
             entries[model_name] = {
                 "rms_dex": result.rms,
+                "rms_dex_unweighted": result.rms_unweighted,
                 "rms_dex_per_incidence": per_incidence_rms(table, result),
                 "median_abs_dex": float(np.median(np.abs(result.residuals))),
                 "max_abs_dex": float(np.max(np.abs(result.residuals))),
                 "near_mirror": near_mirror(table, result),
+                "tilt_deg": result.tilt,
+                "tilt_sigma_deg": result.tilt_sigma,
                 "params": result.params,
                 "sigma": result.uncertainties,
                 "success": result.success,
                 "message": result.message,
                 "seconds": elapsed,
+                "plain": {
+                    "rms_dex": plain.rms,
+                    "near_mirror": near_mirror(table, plain),
+                    "params": plain.params,
+                },
             }
         best = min(entries, key=lambda m: entries[m]["rms_dex"])
         best_one_lobe = min(ONE_LOBE, key=lambda m: entries[m]["rms_dex"])
+        for model_name in (best_one_lobe, "two-lobe"):
+            entries[model_name]["tilt_sigma_deg_jackknife"] = jackknife_tilt(
+                model_name, table, args.starts
+            )
+        # The material alone (preset: no tilt) on the lab geometry as tabulated.
+        entries["two-lobe"]["untilted"] = untilted(table, fits["two-lobe"])
         figure = args.figures / f"starlink_{name}_brdf.png"
         plot(name, table, fits, figure)
         mirror_figure = args.figures / f"starlink_{name}_mirror.png"
         plot_mirror(name, table, {m: fits[m] for m in (best_one_lobe, "two-lobe")}, mirror_figure)
+
+        best_plain = min(ONE_LOBE, key=lambda m: entries[m]["plain"]["rms_dex"])
         report["materials"][name] = {
             "rows_used": int(fits["lambert"].used.sum()),
             "rows_dropped_horizon_floor": dropped,
+            "weighting": "equal total weight per mirror-distance band per incidence, bands "
+            f"{list(brdf.fitting.MIRROR_BANDS_DEG)} deg; tilt fitted",
             "models": entries,
             "best": best,
             "lambert_over_best_rms": entries["lambert"]["rms_dex"] / entries[best]["rms_dex"],
             "best_one_lobe": best_one_lobe,
             "best_one_lobe_over_two_lobe_rms": entries[best_one_lobe]["rms_dex"]
             / entries["two-lobe"]["rms_dex"],
+            "best_one_lobe_over_two_lobe_rms_unweighted": min(
+                entries[m]["rms_dex_unweighted"] for m in ONE_LOBE
+            )
+            / entries["two-lobe"]["rms_dex_unweighted"],
+            "plain_best_one_lobe": best_plain,
+            "plain_best_one_lobe_over_two_lobe_rms": entries[best_plain]["plain"]["rms_dex"]
+            / entries["two-lobe"]["plain"]["rms_dex"],
             "figures": [
                 str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)
                 for path in (figure, mirror_figure)

@@ -14,7 +14,7 @@ both accept numpy arrays or torch tensors (float32/float64, differentiable in th
 from brdf import materials
 from brdf.ashikhmin_shirley import ashikhmin_shirley, ashikhmin_shirley_from_cosines
 from brdf.cook_torrance import cook_torrance, cook_torrance_from_cosines
-from brdf.fitting import FitResult, fit
+from brdf.fitting import FitResult, fit, mirror_band_weights, mirror_distance_deg
 from brdf.lambert import lambert, lambert_from_cosines
 from brdf.lommel_seeliger import lommel_seeliger, lommel_seeliger_from_cosines, phase_function
 from brdf.phong import phong, phong_from_cosines
@@ -53,6 +53,8 @@ __all__ = [
     "lommel_seeliger",
     "lommel_seeliger_from_cosines",
     "materials",
+    "mirror_band_weights",
+    "mirror_distance_deg",
     "phase_function",
     "phong",
     "phong_from_cosines",

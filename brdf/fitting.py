@@ -10,9 +10,17 @@ over their ranges (``starts``) and keeps the best. Weights whose sum may not exc
 model) are searched by stick breaking: the last free weight directly, each earlier one as its
 fraction in [0, 1] of what the later ones leave (e.g. ``rd/(1 − rs)``), so the sum holds.
 
+Two options describe the measurement rather than the material. ``weights`` multiply each
+squared residual (the cost is ``Σ wᵢ rᵢ²``); `mirror_band_weights` gives every band of angular
+distance from the mirror direction the same total weight, so the few points on a narrow
+specular peak are not drowned by the many diffuse ones. ``fit_tilt`` fits the alignment offset
+of the lab set-up: the sample normal rotated by ``tilt`` (deg) from ``z`` towards ``x``, the
+plane of incidence of scans at azimuths 0°/180° (a sample mounted or a scan zero set a fraction
+of a degree off shifts the measured mirror peak by twice that angle).
+
 The 1σ uncertainties come from the Jacobian at the optimum,
-``C = s² (JᵀJ)⁻¹`` with ``s² = Σ r²/(N − p)``, mapped to the model parameters through the
-derivative of the search-variable transform.
+``C = s² (JᵀJ)⁻¹`` with ``s² = Σ wᵢ rᵢ²/(N − p)`` (weights normalised to mean 1), mapped to the
+model parameters through the derivative of the search-variable transform.
 """
 
 from __future__ import annotations
@@ -28,7 +36,9 @@ from brdf._geometry import cosines, tangent_cosines
 from brdf.registry import BRDF, BRDFParameterError, ModelInfo, describe, get
 from brdf.tables import BRDFTable
 
-__all__ = ["FitResult", "fit"]
+__all__ = ["FitResult", "fit", "mirror_band_weights", "mirror_distance_deg"]
+
+MIRROR_BANDS_DEG = (1.0, 3.0, 10.0, 30.0, 90.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,9 +55,10 @@ class FitResult:
         1σ of each free and tied parameter (same units; ``inf`` when the data do not
         constrain it).
     rms : float
-        RMS residual: log10 units (dex) for a log fit, sr⁻¹ otherwise.
+        RMS residual, weighted (``√(Σ w r² / Σ w)``) when the fit was: log10 units (dex) for a
+        log fit, sr⁻¹ otherwise.
     residuals : (N_used,) ndarray
-        ``log10(model/data)`` (log fit) or ``model − data`` per used row.
+        ``log10(model/data)`` (log fit) or ``model − data`` per used row (unweighted).
     used : (N,) bool ndarray
         Rows of the table that entered the fit (positive value, ``n·L > 0`` and ``n·V > 0``).
     free : tuple of str
@@ -57,6 +68,13 @@ class FitResult:
     message : str
     log : bool
         Whether the residuals are in log space.
+    nfev : int
+        Residual evaluations of the best start.
+    weights : (N_used,) ndarray or None
+        Weights of the used rows, normalised to mean 1 (None: unweighted fit).
+    tilt, tilt_sigma : float
+        Tilt (deg) of the sample normal from ``z`` towards ``x`` used in the fit and its 1σ
+        (0 when held fixed).
     """
 
     model: str
@@ -70,6 +88,14 @@ class FitResult:
     message: str
     log: bool = True
     nfev: int = field(default=0)
+    weights: np.ndarray | None = None
+    tilt: float = 0.0
+    tilt_sigma: float = 0.0
+
+    @property
+    def rms_unweighted(self) -> float:
+        """Plain RMS of `residuals` (same units as `rms`)."""
+        return float(np.sqrt(np.mean(self.residuals**2)))
 
     def brdf(self) -> BRDF:
         """The fitted model as a validated `BRDF`."""
@@ -162,6 +188,10 @@ def fit(
     log: bool = True,
     starts: int = 5,
     floor: float = 1e-12,
+    weights: np.ndarray | None = None,
+    tilt: float = 0.0,
+    fit_tilt: bool = False,
+    tilt_bounds: tuple[float, float] = (-1.0, 1.0),
 ) -> FitResult:
     """Fit the parameters of ``model_name`` to tabulated BRDF measurements.
 
@@ -187,6 +217,16 @@ def fit(
         Number of starting points (≥ 1).
     floor : float
         Lower clamp of the model value (sr⁻¹) before the logarithm.
+    weights : (N,) array, optional
+        Non-negative weight of each table row in the cost ``Σ w r²`` (e.g.
+        `mirror_band_weights`); normalised to mean 1 over the used rows.
+    tilt : float
+        Tilt (deg) of the sample normal from ``z`` towards ``x`` (rotation about ``y``): the
+        value used, or the starting value when ``fit_tilt``. The tangent turns with it.
+    fit_tilt : bool
+        Fit ``tilt`` as a nuisance parameter of the measurement, within ``tilt_bounds`` (deg).
+    tilt_bounds : (float, float)
+        Search range of the tilt (deg).
 
     Returns
     -------
@@ -197,7 +237,8 @@ def fit(
     brdf.BRDFParameterError
         Unknown model or parameter names, or bounds outside a parameter's valid range.
     ValueError
-        Fewer usable rows than free parameters.
+        Fewer usable rows than free parameters, weights of the wrong shape, negative, not
+        finite or all zero on the used rows, or a tilt outside ``tilt_bounds``.
     """
     from scipy.optimize import least_squares
 
@@ -231,34 +272,64 @@ def fit(
     search = _Search(info, free, fixed, tied, search_bounds, shared, budget)
 
     light, view = table.directions()
-    normal, tangent = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
-    nl, nv, lv = cosines(np, normal, light, view)
-    hu, hv = tangent_cosines(np, normal, tangent, light, view)
+    nl, nv, _ = cosines(np, np.array([0.0, 0.0, 1.0]), light, view)
     used = (nl > 0) & (nv > 0) & ((table.value > 0) if log else True)
-    if used.sum() <= len(free):
+    count = len(free) + int(fit_tilt)
+    if used.sum() <= count:
         raise ValueError(
-            f"{table.source or 'table'}: {int(used.sum())} usable rows for {len(free)} parameters"
+            f"{table.source or 'table'}: {int(used.sum())} usable rows for {count} parameters"
         )
-    nl, nv, lv, hu, hv = nl[used], nv[used], lv[used], hu[used], hv[used]
+    light, view = light[used], view[used]
     target = np.log10(table.value[used]) if log else table.value[used]
-    extra = {"hu": hu, "hv": hv} if info.name == "ashikhmin-shirley" else {}
+    scale = _row_weights(table, weights, used)
+    if not tilt_bounds[0] <= tilt <= tilt_bounds[1] or not tilt_bounds[0] < tilt_bounds[1]:
+        raise ValueError(
+            f"tilt {tilt:g}° must lie in the increasing range tilt_bounds {tilt_bounds}"
+        )
+    anisotropic = info.name == "ashikhmin-shirley"
+
+    def model_values(params: Mapping[str, float], tilt_deg: float) -> np.ndarray:
+        angle = math.radians(tilt_deg)
+        normal = np.array([math.sin(angle), 0.0, math.cos(angle)])
+        tangent = np.array([math.cos(angle), 0.0, -math.sin(angle)])
+        nl, nv, lv = cosines(np, normal, light, view)
+        extra = {}
+        if anisotropic:
+            hu, hv = tangent_cosines(np, normal, tangent, light, view)
+            extra = {"hu": hu, "hv": hv}
+        return info.cosine(nl, nv, lv, **params, **extra)
+
+    def unweighted(x: np.ndarray) -> np.ndarray:
+        if fit_tilt:
+            x, tilt_deg = x[:-1], x[-1]
+        else:
+            tilt_deg = tilt
+        model = model_values(search.to_params(x), tilt_deg)
+        return (np.log10(np.maximum(model, floor)) if log else model) - target
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        model = info.cosine(nl, nv, lv, **search.to_params(x), **extra)
-        return (np.log10(np.maximum(model, floor)) if log else model) - target
+        raw = unweighted(x)
+        return raw if scale is None else raw * scale
 
     initial = {spec.name: spec.default for spec in info.parameters}
     initial.update(params or {})
     initial.update(fixed)
     low, high = search.x_bounds()
+    if fit_tilt:
+        low, high = np.append(low, tilt_bounds[0]), np.append(high, tilt_bounds[1])
     best = None
     for x0 in _starting_points(search, search.to_x(initial), max(1, starts)):
-        result = least_squares(residuals, x0, bounds=(low, high), method="trf")
+        if fit_tilt:
+            x0 = np.append(x0, tilt)
+        result = least_squares(residuals, np.clip(x0, low, high), bounds=(low, high), method="trf")
         if best is None or result.cost < best.cost:
             best = result
-    fitted = search.to_params(best.x)
+    model_x = best.x[:-1] if fit_tilt else best.x
+    fitted = search.to_params(model_x)
     values = {name: fitted[name] for name in info.parameter_names}
-    uncertainties = _uncertainties(search, best, len(target))
+    sigma = _uncertainties(search, best, len(target), extra=int(fit_tilt))
+    tilt_sigma = sigma.pop("", 0.0)
+    uncertainties = sigma
     uncertainties.update({n: uncertainties.get(s, 0.0) for n, s in tied.items()})
     message = best.message
     success = bool(best.success)
@@ -266,23 +337,104 @@ def fit(
         get(info.name, **values)
     except ValueError as error:
         success, message = False, f"{message}; {error}"
+    raw = unweighted(best.x)
     return FitResult(
         model=info.name,
         params=values,
         uncertainties=uncertainties,
-        rms=float(np.sqrt(np.mean(best.fun**2))),
-        residuals=best.fun.copy(),
+        rms=float(np.sqrt(2.0 * best.cost / len(target))),
+        residuals=raw,
         used=used,
         free=free,
         success=success,
         message=message,
         log=log,
         nfev=int(best.nfev),
+        weights=None if scale is None else scale**2,
+        tilt=float(best.x[-1]) if fit_tilt else float(tilt),
+        tilt_sigma=tilt_sigma,
     )
 
 
-def _uncertainties(search: _Search, result: Any, count: int) -> dict[str, float]:
-    """1σ of the free parameters from the Jacobian at the optimum."""
+def _row_weights(
+    table: BRDFTable, weights: np.ndarray | None, used: np.ndarray
+) -> np.ndarray | None:
+    """Square roots of the used rows' weights normalised to mean 1 (None when unweighted)."""
+    if weights is None:
+        return None
+    name = table.source or "table"
+    weights = np.asarray(weights, dtype=float)
+    if weights.shape != used.shape:
+        raise ValueError(f"{name}: {weights.shape} weights for {used.size} rows")
+    bad = ~np.isfinite(weights) | (weights < 0)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name}: weight of row {row} is {weights[row]!r}, must be finite ≥ 0")
+    chosen = weights[used]
+    if not chosen.sum() > 0:
+        raise ValueError(f"{name}: the weights of the usable rows are all zero")
+    return np.sqrt(chosen / chosen.mean())
+
+
+def mirror_distance_deg(table: BRDFTable) -> np.ndarray:
+    """Angle (deg) between each row's scatter direction and the mirror direction of its source.
+
+    The mirror direction reflects the direction to the source about the sample normal ``z``.
+    """
+    light, view = table.directions()
+    mirror = light * np.array([-1.0, -1.0, 1.0])
+    return np.degrees(np.arccos(np.clip(np.sum(mirror * view, axis=-1), -1.0, 1.0)))
+
+
+def mirror_band_weights(
+    table: BRDFTable, edges_deg: tuple[float, ...] = MIRROR_BANDS_DEG
+) -> np.ndarray:
+    """Row weights giving every band of distance from the mirror direction equal total weight.
+
+    The rows are grouped per incidence (``zenith_in``, ``azimuth_in``) and, within each, by
+    the angle between the scatter direction and the mirror direction of the source into bands
+    with the given upper edges (deg; a last band takes the rest). Each non-empty band of each
+    incidence gets the same total weight, shared equally by its rows. Glossy lobes vary on
+    angular scales proportional to the distance from the mirror direction, so bands spaced
+    roughly logarithmically (default 1°, 3°, 10°, 30°, 90°) each carry comparable information
+    about the lobe shapes, whereas uniform angular sampling puts almost every point in the
+    diffuse wings.
+
+    Parameters
+    ----------
+    table : BRDFTable
+        Measurements (sample normal ``z``).
+    edges_deg : tuple of float
+        Increasing upper band edges (deg).
+
+    Returns
+    -------
+    (N,) ndarray
+        Weights, mean 1 over the rows.
+    """
+    edges = np.asarray(edges_deg, dtype=float)
+    if edges.ndim != 1 or edges.size == 0 or np.any(np.diff(edges) <= 0) or edges[0] <= 0:
+        raise ValueError(f"band edges {edges_deg!r} must be positive and increasing")
+    band = np.searchsorted(edges + 1e-9, mirror_distance_deg(table))
+    _, incidence = np.unique(
+        np.stack([table.zenith_in, table.azimuth_in], axis=-1), axis=0, return_inverse=True
+    )
+    _, cell, counts = np.unique(
+        np.stack([incidence.ravel(), band], axis=-1),
+        axis=0,
+        return_inverse=True,
+        return_counts=True,
+    )
+    weights = 1.0 / counts[cell.ravel()]
+    return weights / weights.mean()
+
+
+def _uncertainties(search: _Search, result: Any, count: int, extra: int = 0) -> dict[str, float]:
+    """1σ of the free parameters from the Jacobian at the optimum.
+
+    ``extra`` trailing search variables (the tilt) are parameters themselves; their 1σ is
+    returned under the key ``""``.
+    """
     jacobian = result.jac
     dof = max(count - jacobian.shape[1], 1)
     variance = 2.0 * result.cost / dof
@@ -294,14 +446,17 @@ def _uncertainties(search: _Search, result: Any, count: int) -> dict[str, float]
     unconstrained = np.any(np.abs(eigenvectors[:, null]) > 1e-6, axis=1)
     # Derivative of the free parameters with respect to the search variables.
     step = 1e-7
-    base = search.to_params(result.x)
-    transform = np.empty((len(search.free), len(search.free)))
-    for j in range(len(search.free)):
-        shifted = result.x.copy()
+    size = len(search.free)
+    model_x = result.x[:size]
+    base = search.to_params(model_x)
+    transform = np.eye(size + extra)
+    for j in range(size):
+        shifted = model_x.copy()
         shifted[j] += step
         moved = search.to_params(shifted)
-        transform[:, j] = [(moved[n] - base[n]) / step for n in search.free]
+        transform[:size, j] = [(moved[n] - base[n]) / step for n in search.free]
     covariance = transform @ covariance_x @ transform.T
     sigma = np.sqrt(np.abs(np.diag(covariance)))
     sigma[unconstrained | ~np.isfinite(sigma)] = np.inf
-    return {name: float(s) for name, s in zip(search.free, sigma, strict=True)}
+    names = (*search.free, *[""] * extra)
+    return {name: float(s) for name, s in zip(names, sigma, strict=True)}
