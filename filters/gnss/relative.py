@@ -93,7 +93,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RelativeGnssConfig:
     """Settings of :class:`RelativeGnssSolver` (SI units).
 
@@ -144,7 +144,7 @@ class RelativeGnssConfig:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RelativeSolution:
     """One epoch of :class:`RelativeGnssSolver` (inertial frame, SI units).
 
@@ -300,7 +300,17 @@ class RelativeGnssSolver:
 
     def _none(self, t: float, m: int, message: str) -> RelativeSolution:
         return RelativeSolution(
-            t, "none", m, None, _NAN3, _NAN33, _NAN3, _NAN33, _NAN3, _NAN33, message=message
+            time=t,
+            status="none",
+            satellites=m,
+            reference=None,
+            position=_NAN3,
+            covariance=_NAN33,
+            code_position=_NAN3,
+            code_covariance=_NAN33,
+            velocity=_NAN3,
+            velocity_covariance=_NAN33,
+            message=message,
         )
 
     # ------------------------------------------------------------------ main entry
