@@ -79,13 +79,13 @@ from benchmarks._machine import machine_info
 from filters.attitude import attitude_matrix
 from lightcurve import io
 from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
-from lightcurve.convex.fit import SCAN_SETTINGS, EarlyRejection, period_profile, refine
 from lightcurve.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
     minkowski_polyhedron,
     polytope,
 )
+from lightcurve.convex.scan import SCAN_SETTINGS, EarlyRejection, period_profile, refine
 from lightcurve.ephemeris import (
     ITOKAWA_HG,
     ITOKAWA_ORBIT,

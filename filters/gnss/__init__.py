@@ -14,6 +14,10 @@ lambda_
     LAMBDA decorrelation and integer search, ratio test, bootstrapped success rate.
 smoothing
     Carrier-smoothed code (Hatch filter) of between-receiver single differences.
+snapshot
+    Single point positioning, double-difference geometry and one epoch's normal equations.
+ambiguity
+    Double-difference ambiguity normal equations accumulated over epochs, keyed by PRN.
 relative
     Code (raw and carrier-smoothed), float and fixed double-difference relative positioning
     epoch by epoch, with cycle-slip detection and time-differenced carrier-phase velocity.

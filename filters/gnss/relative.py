@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2
 
+from filters.gnss.ambiguity import AmbiguityNormals
 from filters.gnss.constellation import SPEED_OF_LIGHT, Constellation
 from filters.gnss.differencing import (
     MIN_COMMON_SATELLITES,
@@ -72,8 +73,13 @@ from filters.gnss.differencing import (
     reference_satellite,
 )
 from filters.gnss.lambda_ import lambda_method
-from filters.gnss.measurements import L1_WAVELENGTH, elevations, transmit_positions
+from filters.gnss.measurements import L1_WAVELENGTH, elevations
 from filters.gnss.smoothing import CarrierSmoothing
+from filters.gnss.snapshot import (
+    double_difference_geometry,
+    epoch_normal_equations,
+    single_point_position,
+)
 
 __all__ = [
     "AmbiguityNormals",
@@ -87,7 +93,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RelativeGnssConfig:
     """Settings of :class:`RelativeGnssSolver` (SI units).
 
@@ -138,7 +144,7 @@ class RelativeGnssConfig:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RelativeSolution:
     """One epoch of :class:`RelativeGnssSolver` (inertial frame, SI units).
 
@@ -210,234 +216,6 @@ _NAN3 = np.full(3, np.nan)
 _NAN33 = np.full((3, 3), np.nan)
 
 
-def single_point_position(
-    positions: Any,
-    velocities: Any,
-    code: Any,
-    initial: Any = None,
-    iterations: int = 10,
-) -> tuple[np.ndarray, float]:
-    """Absolute position and clock offset of a receiver from its pseudoranges (Gauss–Newton).
-
-    Parameters
-    ----------
-    positions, velocities : (m, 3) array_like
-        Satellite states at the reception time (m, m/s, inertial), ``m ≥ 4``.
-    code : (m,) array_like
-        Pseudoranges corrected for the broadcast satellite clocks (m).
-    initial : (3,) array_like, optional
-        Starting position (m); the geocentre by default.
-    iterations : int
-        Maximum iterations (stops when the update is below 1 mm).
-
-    Returns
-    -------
-    position : (3,) numpy.ndarray
-        Receiver position (m, week-start inertial frame).
-    clock : float
-        Receiver clock offset times ``c`` (m).
-    """
-    p = np.asarray(code, dtype=float)
-    if len(p) < 4:
-        raise ValueError(f"single point positioning needs 4 satellites, got {len(p)}")
-    x = np.zeros(4) if initial is None else np.append(np.asarray(initial, dtype=float), 0.0)
-    for _ in range(iterations):
-        sat, rho = transmit_positions(positions, velocities, x[:3])
-        g = np.hstack([-(sat - x[:3]) / rho[:, None], np.ones((len(p), 1))])
-        dx = np.linalg.lstsq(g, p - rho - x[3], rcond=None)[0]
-        x = x + dx
-        if np.linalg.norm(dx[:3]) < 1e-3:
-            break
-    return x[:3], float(x[3])
-
-
-def double_difference_geometry(
-    positions: Any,
-    velocities: Any,
-    reference: int,
-    base: Any,
-    baseline: Any,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Single-difference geometric ranges and their derivatives with respect to the baseline.
-
-    Parameters
-    ----------
-    positions, velocities : (m, 3) array_like
-        Satellite states at the reception time (m, m/s, inertial).
-    reference : int
-        Index of the reference satellite.
-    base : (3,) array_like
-        Base receiver position (m).
-    baseline : (3,) array_like
-        Linearisation point ``b₀`` of the baseline (m).
-
-    Returns
-    -------
-    single : (m,) numpy.ndarray
-        ``ρ_rover − ρ_base`` at ``b₀`` (m), with light time for each receiver.
-    jacobian : (m, 3) numpy.ndarray
-        ``∂ single / ∂ b``: the rover's negative unit lines of sight.
-    design : (m − 1, 3) numpy.ndarray
-        ``A = ∂ DD ρ / ∂ b``, the double differences of ``jacobian``.
-    """
-    base = np.asarray(base, dtype=float)
-    rover = base + np.asarray(baseline, dtype=float)
-    _, rho_b = transmit_positions(positions, velocities, base)
-    sat_r, rho_r = transmit_positions(positions, velocities, rover)
-    jacobian = -(sat_r - rover) / rho_r[:, None]
-    return rho_r - rho_b, jacobian, double_differences(jacobian.T, reference).T
-
-
-def epoch_normal_equations(
-    design: Any, y_code: Any, y_phase: Any, q_code: Any, q_phase: Any, wavelength: float
-) -> dict[str, np.ndarray]:
-    """One epoch's normal equations of ``[δb, a]`` and the ambiguity block with ``δb`` reduced.
-
-    Parameters
-    ----------
-    design : (n, 3) array_like
-        ``A``.
-    y_code, y_phase : (n,) array_like
-        Observed-minus-computed code and phase double differences (m).
-    q_code, q_phase : (n, n) array_like
-        Their covariances (m²).
-    wavelength : float
-        ``λ`` (m): the phase model is ``y_Φ = A δb + λ a``.
-
-    Returns
-    -------
-    dict
-        ``N_bb`` (3, 3), ``N_ba`` (3, n), ``N_aa`` (n, n), ``n_b`` (3,), ``n_a`` (n,),
-        ``reduced_normal`` (n, n) and ``reduced_rhs`` (n,).
-    """
-    a = np.asarray(design, dtype=float)
-    w_c = np.linalg.inv(np.asarray(q_code, dtype=float))
-    w_p = np.linalg.inv(np.asarray(q_phase, dtype=float))
-    y_c = np.asarray(y_code, dtype=float)
-    y_p = np.asarray(y_phase, dtype=float)
-    lam = float(wavelength)
-    n_bb = a.T @ (w_c + w_p) @ a
-    n_ba = lam * a.T @ w_p
-    n_aa = lam * lam * w_p
-    n_b = a.T @ (w_c @ y_c + w_p @ y_p)
-    n_a = lam * w_p @ y_p
-    reduce = np.linalg.solve(n_bb, np.column_stack([n_ba, n_b]))
-    return {
-        "N_bb": n_bb,
-        "N_ba": n_ba,
-        "N_aa": n_aa,
-        "n_b": n_b,
-        "n_a": n_a,
-        "reduced_normal": n_aa - n_ba.T @ reduce[:, :-1],
-        "reduced_rhs": n_a - n_ba.T @ reduce[:, -1],
-    }
-
-
-class AmbiguityNormals:
-    """Accumulated normal equations of double-difference ambiguities, keyed by PRN.
-
-    Parameters are ``a_s = N_s − N_q`` for the PRNs in :attr:`prns` and the reference PRN
-    :attr:`reference`; :attr:`fixed` holds the accepted integers (NaN where float).
-    """
-
-    def __init__(self, reference: int) -> None:
-        self.reference = int(reference)
-        self.prns: list[int] = []
-        self.normal = np.zeros((0, 0))
-        self.rhs = np.zeros(0)
-        self.fixed = np.zeros(0)
-        self.epochs = 0
-
-    def position(self, prns: Any) -> np.ndarray:
-        """Indices of ``prns`` in the parameter order."""
-        lookup = {p: i for i, p in enumerate(self.prns)}
-        return np.array([lookup[int(p)] for p in prns], dtype=int)
-
-    def add(self, prns: Any) -> None:
-        """Append new parameters without information."""
-        new = [int(p) for p in prns if int(p) not in self.prns and int(p) != self.reference]
-        if not new:
-            return
-        n, k = len(self.prns), len(new)
-        normal = np.zeros((n + k, n + k))
-        normal[:n, :n] = self.normal
-        self.normal = normal
-        self.rhs = np.concatenate([self.rhs, np.zeros(k)])
-        self.fixed = np.concatenate([self.fixed, np.full(k, np.nan)])
-        self.prns.extend(new)
-
-    def drop(self, prns: Any) -> None:
-        """Marginalise parameters out (their information about the others is kept)."""
-        gone = [int(p) for p in prns if int(p) in self.prns]
-        if not gone:
-            return
-        j = self.position(gone)
-        keep = np.setdiff1d(np.arange(len(self.prns)), j)
-        n_jj = self.normal[np.ix_(j, j)]
-        n_kj = self.normal[np.ix_(keep, j)]
-        inv = np.linalg.pinv(n_jj, hermitian=True)
-        self.normal = self.normal[np.ix_(keep, keep)] - n_kj @ inv @ n_kj.T
-        self.rhs = self.rhs[keep] - n_kj @ inv @ self.rhs[j]
-        self.fixed = self.fixed[keep]
-        self.prns = [self.prns[i] for i in keep]
-
-    def reset(self, prns: Any) -> None:
-        """Re-initialise parameters (after a cycle slip): marginalise, then add afresh."""
-        self.drop(prns)
-        self.add(prns)
-
-    def change_reference(self, new_reference: int) -> None:
-        """Re-express the parameters relative to ``new_reference`` (one of :attr:`prns`).
-
-        ``a'_s = a_s − a_{q'}`` and ``a'_q = −a_{q'}`` (the old reference takes the new one's
-        place): an integer, self-inverse map ``T``, so ``N' = T N T`` and ``n' = T n``.
-        """
-        j = self.position([new_reference])[0]
-        n = len(self.prns)
-        t = np.eye(n)
-        t[:, j] -= 1.0
-        t[j, j] = -1.0
-        self.normal = t.T @ self.normal @ t
-        self.rhs = t.T @ self.rhs
-        self.fixed = t @ self.fixed
-        self.prns[j] = self.reference
-        self.reference = int(new_reference)
-
-    def accumulate(self, reduced_normal: Any, reduced_rhs: Any, prns: Any) -> None:
-        """Add one epoch's reduced normal equations for the parameters ``prns``."""
-        j = self.position(prns)
-        self.normal[np.ix_(j, j)] += reduced_normal
-        self.rhs[j] += reduced_rhs
-        self.epochs += 1
-
-    def float_solution(self, free: Any, conditional: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """Float ambiguities of the ``free`` parameters (indices).
-
-        Parameters
-        ----------
-        free : (k,) array_like of int
-        conditional : bool
-            Condition on the fixed parameters ``X`` outside ``free`` (``N_FF⁻¹ (n_F −
-            N_FX a_X)``); otherwise the others are free too and the marginal float solution
-            ``(N⁻¹ n)_F`` with covariance ``(N⁻¹)_FF`` is returned.
-
-        Returns
-        -------
-        a : (k,) numpy.ndarray
-        q : (k, k) numpy.ndarray
-        """
-        free = np.asarray(free, dtype=int)
-        if not conditional:
-            q_all = np.linalg.inv(self.normal)
-            q = q_all[np.ix_(free, free)]
-            return (q_all @ self.rhs)[free], 0.5 * (q + q.T)
-        fixed = np.setdiff1d(np.flatnonzero(np.isfinite(self.fixed)), free)
-        n_ff = self.normal[np.ix_(free, free)]
-        rhs = self.rhs[free] - self.normal[np.ix_(free, fixed)] @ self.fixed[fixed]
-        q = np.linalg.inv(n_ff)
-        return q @ rhs, 0.5 * (q + q.T)
-
-
 class RelativeGnssSolver:
     """Epoch-by-epoch relative GNSS of a rover (chaser) with respect to a base (target).
 
@@ -477,7 +255,7 @@ class RelativeGnssSolver:
             double_difference_covariance(c.phase_sigma**2 * ones, c.phase_sigma**2 * ones, ref),
         )
 
-    def _code_solution(self, sat, vel, ref, base, sd_code, baseline, q_code):
+    def _code_solution(self, sat, vel, ref, base, sd_code, *, baseline, q_code):
         """Iterated least squares of code double differences for the baseline."""
         w = np.linalg.inv(q_code)
         for _ in range(4):
@@ -522,7 +300,17 @@ class RelativeGnssSolver:
 
     def _none(self, t: float, m: int, message: str) -> RelativeSolution:
         return RelativeSolution(
-            t, "none", m, None, _NAN3, _NAN33, _NAN3, _NAN33, _NAN3, _NAN33, message=message
+            time=t,
+            status="none",
+            satellites=m,
+            reference=None,
+            position=_NAN3,
+            covariance=_NAN33,
+            code_position=_NAN3,
+            code_covariance=_NAN33,
+            velocity=_NAN3,
+            velocity_covariance=_NAN33,
+            message=message,
         )
 
     # ------------------------------------------------------------------ main entry
@@ -612,7 +400,9 @@ class RelativeGnssSolver:
 
         # Code-only double-difference solution (also the linearisation point).
         start = previous["baseline"] if previous is not None else np.zeros(3)
-        b_code, c_code = self._code_solution(sat, vel, ref, base, sd_code, start, q_code)
+        b_code, c_code = self._code_solution(
+            sat, vel, ref, base, sd_code, baseline=start, q_code=q_code
+        )
         b0 = previous["baseline"] if previous is not None else b_code
         geo, jacobian, design = double_difference_geometry(sat, vel, ref, base, b0)
 
@@ -708,8 +498,9 @@ class RelativeGnssSolver:
             2.0 * cfg.phase_sigma**2,
         )  # fmt: skip
         b_smooth, c_smooth = self._code_solution(
-            sat, vel, ref, base, smoothed, b_code,
-            double_difference_covariance(variance, np.zeros(m), ref),
+            sat, vel, ref, base, smoothed,
+            baseline=b_code,
+            q_code=double_difference_covariance(variance, np.zeros(m), ref),
         )  # fmt: skip
 
         # Geometry at the epoch's estimate, for the next epoch's time differences.

@@ -135,7 +135,7 @@ def _settings(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
-    from lightcurve.convex.fit import SCAN_SETTINGS, refine
+    from lightcurve.convex.scan import SCAN_SETTINGS, refine
     from lightcurve.spin import SpinState
 
     if args.period is None and args.period_range is None:

@@ -5,18 +5,16 @@ Modules: :mod:`~lightcurve.convex.sphere` (the fixed Gaussian sphere and harmoni
 and :mod:`~lightcurve.convex.kernels` (the batched model and its Jacobian: numpy and compiled
 numba kernels), :mod:`~lightcurve.convex.model` (the same model in torch: autograd, GPU),
 :mod:`~lightcurve.convex.layout` (the parameter vector), :mod:`~lightcurve.convex.optimize`
-(batched Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits, period scans, χ² profiles
-in period), :mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
+(batched Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits from pole starts, their
+results and uncertainties), :mod:`~lightcurve.convex.scan` (period scans, χ² profiles in
+period), :mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
 """
 
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.fit import (
-    ConvexSettings,
-    ConvexSolution,
+from lightcurve.convex.fit import ConvexSettings, ConvexSolution, fibonacci_poles, fit
+from lightcurve.convex.scan import (
     EarlyRejection,
     PeriodScan,
-    fibonacci_poles,
-    fit,
     period_profile,
     period_scan,
     period_step,

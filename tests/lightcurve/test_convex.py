@@ -22,7 +22,7 @@ from lightcurve.convex import (
     period_scan,
     period_step,
 )
-from lightcurve.convex.fit import _canonical_pole, refine
+from lightcurve.convex.fit import _canonical_pole
 from lightcurve.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
@@ -31,6 +31,7 @@ from lightcurve.convex.minkowski import (
     volume_hessian,
 )
 from lightcurve.convex.model import ConvexModel
+from lightcurve.convex.scan import refine
 from lightcurve.ephemeris import (
     ITOKAWA_HG,
     ITOKAWA_ORBIT,
