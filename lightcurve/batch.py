@@ -158,6 +158,7 @@ def run_batch(
     job: Job,
     inputs: Sequence[str | os.PathLike[str]],
     out_dir: str | os.PathLike[str],
+    *,
     options: dict[str, Any] | None = None,
     overwrite: bool = False,
     workers: int = 1,
@@ -215,7 +216,15 @@ def run_batch(
     logger.info("%d input(s): %d done before, %d to run", len(files), len(records), len(todo))
     bar = tqdm(total=len(todo), desc="invert", unit="file", disable=not progress or not todo)
     try:
-        runs = _execute(job, todo, out_dir, options, workers, scheduler, error_template or {})
+        runs = _execute(
+            job,
+            todo,
+            out_dir,
+            options=options,
+            workers=workers,
+            scheduler=scheduler,
+            template=error_template or {},
+        )
         for path, record in runs:
             records[path] = record
             bar.update(1)
@@ -231,6 +240,7 @@ def _execute(
     job: Job,
     todo: list[Path],
     out_dir: Path,
+    *,
     options: dict[str, Any],
     workers: int,
     scheduler: str | None,
