@@ -257,7 +257,14 @@ def itokawa_apparitions() -> object:
     """Itokawa's 2001 and 2004 apparitions from the geocentre (see the module docstring)."""
     epochs = nightly_epochs(ITOKAWA_WINDOWS, every_days=3.0, hours=5.0, cadence_minutes=10.0)
     return asteroid_geometry(
-        ITOKAWA_ORBIT, epochs, "itokawa", 60.0, *ITOKAWA_HG, max_magnitude=18.0, max_phase_deg=90
+        ITOKAWA_ORBIT,
+        epochs,
+        name="itokawa",
+        min_elongation_deg=60.0,
+        absolute_magnitude=ITOKAWA_HG[0],
+        slope=ITOKAWA_HG[1],
+        max_magnitude=18.0,
+        max_phase_deg=90,
     )
 
 
@@ -507,9 +514,10 @@ def simulated_set(every_days: float) -> tuple[Photometry, SpinState]:
     geometry = asteroid_geometry(
         EROS_LIKE_ORBIT,
         epochs,
-        "eros_like",
-        60.0,
-        *EROS_LIKE_HG,
+        name="eros_like",
+        min_elongation_deg=60.0,
+        absolute_magnitude=EROS_LIKE_HG[0],
+        slope=EROS_LIKE_HG[1],
         max_magnitude=16.0,
         max_phase_deg=60.0,
     )
@@ -527,7 +535,7 @@ def simulated_set(every_days: float) -> tuple[Photometry, SpinState]:
     body = FacetModel(hull.vertices * 1000.0, hull.faces, materials=REGOLITH)
     lam, beta, period = SIMULATED_SPIN
     truth = SpinState.from_degrees(lam, beta, period, 0.0, float(geometry.mjd.min()))
-    simulated = simulate_rotator(geometry, body, truth, GaussianNoise(0.01), seed=3)
+    simulated = simulate_rotator(geometry, body, truth, noise=GaussianNoise(0.01), seed=3)
     return Photometry.from_observations([simulated]), truth
 
 

@@ -243,7 +243,7 @@ def night_study(shape, runs: int, seed: int, cadence_s: float, budgets, state_co
         for budget in budgets:
             for s_max in (None, int(np.ceil(INTERVAL_LIMIT * ahead.length / budget))):
                 start = time.perf_counter()
-                study = compare_schedules(model, x0, p0, budget, s_max=s_max, ahead=ahead)
+                study = compare_schedules(model, x0, p0, budget=budget, s_max=s_max, ahead=ahead)
                 row = comparison_row(study, time.perf_counter() - start)
                 row.update(
                     states=n_states, s_max=s_max, forecast_seconds=round(forecast_seconds, 1)
@@ -275,7 +275,8 @@ def short_study(shape, runs: int, seed: int, budget: int) -> dict:
     p0 = np.broadcast_to(prior_covariance(6), (runs, 6, 6))
     start = time.perf_counter()
     row = comparison_row(
-        compare_schedules(model, truth, p0, budget, rollout=True), time.perf_counter() - start
+        compare_schedules(model, truth, p0, budget=budget, rollout=True),
+        time.perf_counter() - start,
     )
     # Plan on an estimate drawn from a tight prior, score every pattern on the truth.
     rng = np.random.default_rng(seed + 2)
@@ -289,9 +290,9 @@ def short_study(shape, runs: int, seed: int, budget: int) -> dict:
     )
     estimate[:, 4:7] += draw[:, 3:]
     p_tight = np.broadcast_to(tight, (runs, 6, 6))
-    planned_on_estimate = compare_schedules(model, estimate, p_tight, budget)
+    planned_on_estimate = compare_schedules(model, estimate, p_tight, budget=budget)
     on_truth = forecast(model, truth, p_tight, 0, model.n_epochs - 1)
-    planned_on_truth = compare_schedules(model, truth, p_tight, budget, ahead=on_truth)
+    planned_on_truth = compare_schedules(model, truth, p_tight, budget=budget, ahead=on_truth)
     final = {
         name: covariance_measure(propagate_schedule(on_truth, pattern)[-1], ATTITUDE)
         for name, pattern in planned_on_estimate.taken.items()

@@ -26,7 +26,7 @@ _INV_PI = 0.3183098861837907
 
 
 def cook_torrance_from_cosines(
-    nl: Any, nv: Any, lv: Any, /, rd: Any, rs: Any, m: Any, f0: Any
+    nl: Any, nv: Any, lv: Any, /, *, rd: Any, rs: Any, m: Any, f0: Any
 ) -> Any:
     """Cook–Torrance BRDF from the cosines ``n·L``, ``n·V`` and ``L·V``.
 
@@ -62,7 +62,7 @@ def cook_torrance_from_cosines(
     return (rd * _INV_PI + specular_weight * specular) * visible
 
 
-def cook_torrance(normal: Any, light: Any, view: Any, rd: Any, rs: Any, m: Any, f0: Any) -> Any:
+def cook_torrance(normal: Any, light: Any, view: Any, *, rd: Any, rs: Any, m: Any, f0: Any) -> Any:
     """Cook–Torrance BRDF of unit direction vectors.
 
     Parameters

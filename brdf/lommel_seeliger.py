@@ -56,7 +56,7 @@ def phase_function(lv: Any, a: Any, d: Any, k: Any) -> Any:
 
 
 def lommel_seeliger_from_cosines(
-    nl: Any, nv: Any, lv: Any, /, w: Any, c: Any, a: Any, d: Any, k: Any
+    nl: Any, nv: Any, lv: Any, /, *, w: Any, c: Any, a: Any, d: Any, k: Any
 ) -> Any:
     """Lommel–Seeliger BRDF from the cosines ``n·L``, ``n·V`` and ``L·V``.
 
@@ -85,7 +85,7 @@ def lommel_seeliger_from_cosines(
 
 
 def lommel_seeliger(
-    normal: Any, light: Any, view: Any, w: Any, c: Any, a: Any, d: Any, k: Any
+    normal: Any, light: Any, view: Any, *, w: Any, c: Any, a: Any, d: Any, k: Any
 ) -> Any:
     """Lommel–Seeliger BRDF of unit direction vectors.
 

@@ -100,6 +100,7 @@ def huber_kalman_update(
     z: Any,
     h: Any,
     r: Any,
+    *,
     threshold: float = HUBER_THRESHOLD,
     max_iterations: int = 50,
     tolerance: float = 1e-6,

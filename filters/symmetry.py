@@ -226,6 +226,7 @@ def symmetry_group(
     centroids: Any,
     normals: Any,
     areas: Any,
+    *,
     labels: Any = None,
     tangents: Any = None,
     anisotropic: Any = None,
@@ -299,11 +300,28 @@ def symmetry_group(
     if first is None:
         # Every facet vector is parallel to one line (a degenerate model): only identity.
         return SymmetryGroup(np.eye(3)[None])
-    verify = _Verifier(cs, n, a / area_scale, labels, tangents, anisotropic, inertia, tolerance)
+    verify = _Verifier(
+        cs,
+        n,
+        a / area_scale,
+        labels=labels,
+        tangents=tangents,
+        anisotropic=anisotropic,
+        inertia=inertia,
+        tolerance=tolerance,
+    )
     pair = (first, second)
-    rotations = _matches(np.eye(3), pair, vectors, owners, classes, verify, tolerance)
+    rotations = _matches(
+        np.eye(3), pair, vectors, owners, classes, verify=verify, tolerance=tolerance
+    )
     reflections = _matches(
-        np.diag([1.0, 1.0, -1.0]), pair, vectors, owners, classes, verify, tolerance
+        np.diag([1.0, 1.0, -1.0]),
+        pair,
+        vectors,
+        owners,
+        classes,
+        verify=verify,
+        tolerance=tolerance,
     )
     rotations = np.stack(rotations)
     return SymmetryGroup(
@@ -313,7 +331,7 @@ def symmetry_group(
     )
 
 
-def _matches(base, pair, vectors, owners, classes, verify, tolerance) -> list[np.ndarray]:
+def _matches(base, pair, vectors, owners, classes, *, verify, tolerance) -> list[np.ndarray]:
     """Symmetries ``R B`` (``R`` proper) of the facet set, ``B`` the identity (rotations)
     or a reflection (improper symmetries): ``R`` maps the reflected reference pair onto
     every matching pair and is kept when it passes ``verify``."""
@@ -392,7 +410,7 @@ def _triad(u1, u2, w1, w2):
 class _Verifier:
     """Checks a candidate rotation against every facet (and the inertia)."""
 
-    def __init__(self, cs, n, a, labels, tangents, anisotropic, inertia, tolerance):
+    def __init__(self, cs, n, a, *, labels, tangents, anisotropic, inertia, tolerance):
         self.cs, self.n, self.a, self.labels = cs, n, a, labels
         self.tree = cKDTree(np.concatenate([cs, n], axis=1))
         self.tangents = None if tangents is None else np.asarray(tangents, dtype=float)

@@ -158,6 +158,7 @@ def run_batch(
     job: Job,
     inputs: Sequence[str | os.PathLike[str]],
     out_dir: str | os.PathLike[str],
+    *,
     options: dict[str, Any] | None = None,
     overwrite: bool = False,
     workers: int = 1,
@@ -230,7 +231,15 @@ def run_batch(
     if not inner.disable:
         options["progress"] = _file_progress(inner)
     try:
-        runs = _execute(job, todo, out_dir, options, workers, scheduler, error_template or {})
+        runs = _execute(
+            job,
+            todo,
+            out_dir,
+            options=options,
+            workers=workers,
+            scheduler=scheduler,
+            template=error_template or {},
+        )
         for path, record in runs:
             records[path] = record
             bar.update(1)
@@ -259,6 +268,7 @@ def _execute(
     job: Job,
     todo: list[Path],
     out_dir: Path,
+    *,
     options: dict[str, Any],
     workers: int,
     scheduler: str | None,

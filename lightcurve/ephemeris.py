@@ -462,6 +462,7 @@ def hg_magnitude(
 def asteroid_geometry(
     orbit: HeliocentricOrbit,
     mjd: np.ndarray,
+    *,
     name: str = "asteroid",
     min_elongation_deg: float | None = 60.0,
     absolute_magnitude: float | None = None,

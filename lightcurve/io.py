@@ -332,9 +332,9 @@ def _finish(
         table,
         str(path),
         meta,
-        require_magnitudes,
-        drop_bad_rows,
-        problems,
+        require_magnitudes=require_magnitudes,
+        drop_bad_rows=drop_bad_rows,
+        problems=problems,
         allow_duplicate_epochs=allow_duplicates,
     )
     return Observations(canonical, meta, str(path), problems)

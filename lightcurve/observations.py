@@ -324,6 +324,7 @@ def validate_table(
     table: pd.DataFrame,
     source: str | None = None,
     meta: dict[str, str] | None = None,
+    *,
     require_magnitudes: bool = True,
     drop_bad_rows: bool = False,
     problems: list[RowProblem] | None = None,

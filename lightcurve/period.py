@@ -220,6 +220,7 @@ def fourier_chi2(
     sigma: np.ndarray,
     curve: np.ndarray,
     frequencies: np.ndarray,
+    *,
     order: int,
     phase_offset: np.ndarray | None = None,
     chunk: int = 256,

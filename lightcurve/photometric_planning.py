@@ -357,6 +357,7 @@ def compare_schedules(
     model: Any,
     x0: np.ndarray,
     p0: np.ndarray,
+    *,
     budget: int,
     s_max: int | None = None,
     indices: Sequence[int] = ATTITUDE,

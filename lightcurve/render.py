@@ -157,6 +157,7 @@ class Renderer:
     def __init__(
         self,
         shape: FacetModel | CompiledFacets,
+        *,
         shadows: str = "auto",
         dtype: torch.dtype | None = None,
         device: str | torch.device | None = None,

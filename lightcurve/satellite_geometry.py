@@ -148,6 +148,7 @@ def _from_object_itrs(
     mjd: np.ndarray,
     rotations: FrameRotations,
     object_itrs: np.ndarray,
+    *,
     shadow_model: str,
     tle_age_days: np.ndarray | None = None,
     object_velocity_gcrs: np.ndarray | None = None,
@@ -199,7 +200,13 @@ def from_tle(
     # vectors, the frame's own rate adds < 10⁻⁶ m/s.
     velocity = _apply(rotations.teme_to_gcrs, state.velocity_km_s)
     return _from_object_itrs(
-        site, mjd, rotations, object_itrs, shadow_model, state.age_days, velocity
+        site,
+        mjd,
+        rotations,
+        object_itrs,
+        shadow_model=shadow_model,
+        tle_age_days=state.age_days,
+        object_velocity_gcrs=velocity,
     )
 
 
@@ -227,7 +234,9 @@ def from_horizontal(
     mjd = np.atleast_1d(np.asarray(mjd, dtype=float))
     rotations = frame_rotations(mjd)
     topocentric = itrs_from_horizontal(site, elevation_deg, azimuth_deg, range_km)
-    return _from_object_itrs(site, mjd, rotations, site_itrs(site) + topocentric, shadow_model)
+    return _from_object_itrs(
+        site, mjd, rotations, site_itrs(site) + topocentric, shadow_model=shadow_model
+    )
 
 
 def from_radec(
@@ -251,4 +260,6 @@ def from_radec(
     direction = np.stack([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)], -1)
     topocentric_gcrs = np.asarray(range_km, dtype=float)[:, None] * direction
     topocentric_itrs = _apply(rotations.itrs_to_gcrs.transpose(0, 2, 1), topocentric_gcrs)
-    return _from_object_itrs(site, mjd, rotations, site_itrs(site) + topocentric_itrs, shadow_model)
+    return _from_object_itrs(
+        site, mjd, rotations, site_itrs(site) + topocentric_itrs, shadow_model=shadow_model
+    )

@@ -100,6 +100,7 @@ def truth_states(
 def _attitude(
     geometry: Observations,
     profile: str,
+    *,
     q0: np.ndarray | None,
     omega0: np.ndarray | None,
     inertia: np.ndarray,
@@ -143,6 +144,7 @@ def simulate(
     shape: FacetModel | ArticulatedModel,
     q0: np.ndarray | None,
     omega0: np.ndarray | None,
+    *,
     inertia: np.ndarray | None = None,
     noise: NoiseModel | None = None,
     shadows: str = "auto",
@@ -190,7 +192,13 @@ def simulate(
     rng = np.random.default_rng(seed)
     inertia = shape.inertia if inertia is None else np.asarray(inertia, float)
     states, attitude_meta = _attitude(
-        geometry, profile, q0, omega0, inertia, offset_deg, yaw_steering
+        geometry,
+        profile,
+        q0=q0,
+        omega0=omega0,
+        inertia=inertia,
+        offset_deg=offset_deg,
+        yaw_steering=yaw_steering,
     )
     joints = {}
     if isinstance(shape, ArticulatedModel):

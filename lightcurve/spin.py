@@ -330,6 +330,7 @@ def simulate_rotator(
     geometry: Observations,
     shape: FacetModel,
     spin: SpinState,
+    *,
     noise: NoiseModel | None = None,
     seed: int | np.random.Generator | None = None,
     relative: bool | None = True,
@@ -377,7 +378,9 @@ def simulate_rotator(
         table = geometry.table.loc[ids == label].drop_duplicates("mjd").reset_index(drop=True)
         night = Observations(table, {"target": geometry.meta.get("target", "satellite")})
         q0, omega0 = spin.initial_state(float(table["mjd"].iloc[0]))
-        result = simulate(night, shape, q0, omega0, inertia, noise, shadows, rng)
+        result = simulate(
+            night, shape, q0, omega0, inertia=inertia, noise=noise, shadows=shadows, seed=rng
+        )
         out = result.table.copy()
         out["lightcurve_id"] = int(label)
         out["relative"] = (

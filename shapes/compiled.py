@@ -165,6 +165,7 @@ def compile_facets(
     areas: np.ndarray,
     centroids: np.ndarray,
     material_of_facet: np.ndarray,
+    *,
     materials: Sequence[Material],
     can_be_shadowed: np.ndarray,
     angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE,

@@ -435,9 +435,9 @@ class FacetModel:
                 self.areas,
                 self.centroids,
                 group_material[self.group_index],
-                distinct,
-                self.facet_can_be_shadowed,
-                key,
+                materials=distinct,
+                can_be_shadowed=self.facet_can_be_shadowed,
+                angle_tolerance=key,
             )
             table = self.visibility
             if table is not None and table.structure == compiled.structure:

@@ -156,6 +156,7 @@ def propagate(
     x0: Any,
     times: Any,
     inertia: Any,
+    *,
     torque: Callable[[float, np.ndarray], np.ndarray] | None = None,
     rtol: float = 1e-12,
     atol: float = 1e-12,

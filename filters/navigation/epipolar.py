@@ -142,6 +142,7 @@ def sampson_error(essential: Any, x1: Any, x2: Any) -> Any:
 def ransac_essential(
     x1: np.ndarray,
     x2: np.ndarray,
+    *,
     threshold: float,
     rng: np.random.Generator,
     confidence: float = 0.999,
@@ -480,6 +481,7 @@ def _reference_candidates(
     visible: np.ndarray,
     q: np.ndarray,
     links: np.ndarray,
+    *,
     linking: str,
     min_matches: int,
     baseline: tuple[float, float],
@@ -511,6 +513,7 @@ def _reference_candidates(
 def attitude_sequence(
     tracks: FeatureTracks,
     camera: PinholeCamera,
+    *,
     rng: np.random.Generator,
     threshold_px: float = 1.0,
     refine_iterations: int = 10,
@@ -564,12 +567,18 @@ def attitude_sequence(
     for k in range(1, size):
         reasons = []
         for j in _reference_candidates(
-            k, tracks.visible, q, links, linking, min_matches, tuple(np.radians(baseline_deg))
+            k,
+            tracks.visible,
+            q,
+            links,
+            linking=linking,
+            min_matches=min_matches,
+            baseline=tuple(np.radians(baseline_deg)),
         ):
             _, uv1, uv2 = tracks.matches(j, k)
             x1, x2 = np.asarray(camera.normalized(uv1)), np.asarray(camera.normalized(uv2))
             try:
-                e, inl = ransac_essential(x1, x2, threshold_px / focal, rng)
+                e, inl = ransac_essential(x1, x2, threshold=threshold_px / focal, rng=rng)
                 r, t, _ = pose_from_essential(e, x1[inl], x2[inl])
             except EpipolarError as exc:
                 reasons.append(f"frames {j}->{k}: {exc}")

@@ -97,6 +97,7 @@ def simulate_tracks(
     attitudes: np.ndarray,
     times: np.ndarray,
     camera: PinholeCamera,
+    *,
     position: np.ndarray,
     pixel_sigma: float,
     rng: np.random.Generator,

@@ -524,6 +524,7 @@ class LanderModel:
         pixels: np.ndarray,
         ids: np.ndarray,
         valid: np.ndarray,
+        *,
         iterations: int = 1,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Landmark-image update (eqs. 14–18); ``iterations > 1`` relinearises (IEKF).

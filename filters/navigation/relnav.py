@@ -130,7 +130,7 @@ class RelativeNavigationFilter:
         r = r**2 * np.eye(3) if r.ndim == 0 else r
         z = np.asarray(z, dtype=float)
         if self.robust == "huber":
-            result = huber_kalman_update(self.x, self.P, z, _H, r, self.huber_threshold)
+            result = huber_kalman_update(self.x, self.P, z, _H, r, threshold=self.huber_threshold)
             self.x, self.P = result.x, result.P
             return result.weights
         gain, _ = kalman_gain(self.P, _H, r)

@@ -30,6 +30,7 @@ def select_keyframes(
     transition: np.ndarray,
     process_noise: np.ndarray,
     covariance: np.ndarray,
+    *,
     count: int,
     s_max: int | None = None,
     indices: Sequence[int] | None = None,

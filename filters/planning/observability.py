@@ -295,6 +295,7 @@ def observability_rank(
     f: Function,
     h: Function,
     x: torch.Tensor,
+    *,
     max_order: int | None = None,
     chart: Chart | None = None,
     scales: Sequence[float] | None = None,

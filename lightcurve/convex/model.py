@@ -73,6 +73,7 @@ class ConvexModel:
         epoch_mjd: float,
         convexity_weight: float = 0.1,
         dtype: torch.dtype = torch.float64,
+        *,
         device: str | torch.device | None = None,
         compile: bool = False,
     ) -> None:
@@ -223,8 +224,8 @@ class ConvexModel:
                     self.normals,
                     areas,
                     *weighted,
-                    c,
-                    derivatives,
+                    c=c,
+                    derivatives=derivatives,
                 )
             )
         return [torch.cat(column, dim=1) for column in zip(*parts, strict=True)]
@@ -371,6 +372,7 @@ def _block_sums(
     areas: torch.Tensor,
     weighted_basis: torch.Tensor | None,
     weighted_normals: torch.Tensor | None,
+    *,
     c: torch.Tensor,
     derivatives: bool,
 ) -> list[torch.Tensor]:

@@ -52,6 +52,7 @@ def levenberg_marquardt(
     residuals: Residuals,
     x0: Any,
     free: Any,
+    *,
     max_iter: int = 50,
     rtol: float = 1e-6,
     damping: float = 1e-3,
@@ -94,7 +95,17 @@ def levenberg_marquardt(
     if scaling not in ("current", "max"):
         raise ValueError(f"scaling must be 'current' or 'max', got {scaling!r}")
     if not isinstance(x0, np.ndarray) and type(x0).__module__.startswith("torch"):
-        return _solve_torch(residuals, x0, free, max_iter, rtol, damping, project, scaling, stop)
+        return _solve_torch(
+            residuals,
+            x0,
+            free,
+            max_iter=max_iter,
+            rtol=rtol,
+            damping=damping,
+            project=project,
+            scaling=scaling,
+            stop=stop,
+        )
     x = np.array(x0, dtype=float)
     batch = x.shape[0]
     index = np.flatnonzero(np.asarray(free))
@@ -162,7 +173,7 @@ def levenberg_marquardt(
     return LMResult(x, chi2, hessian, iterations, converged, evaluations, stopped)
 
 
-def _solve_torch(residuals, x0, free, max_iter, rtol, damping, project, scaling, stop):
+def _solve_torch(residuals, x0, free, *, max_iter, rtol, damping, project, scaling, stop):
     """:func:`levenberg_marquardt` of a problem posed in torch (see the module docstring)."""
     import torch
 
@@ -181,12 +192,12 @@ def _solve_torch(residuals, x0, free, max_iter, rtol, damping, project, scaling,
         numpy_residuals,
         as_array(x0),
         as_array(torch.as_tensor(free)).astype(bool),
-        max_iter,
-        rtol,
-        damping,
-        numpy_project,
-        scaling,
-        stop,
+        max_iter=max_iter,
+        rtol=rtol,
+        damping=damping,
+        project=numpy_project,
+        scaling=scaling,
+        stop=stop,
     )
     floats = ("x", "chi2", "hessian")
     return LMResult(

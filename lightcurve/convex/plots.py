@@ -80,6 +80,7 @@ def plot_shape(
     vertices: np.ndarray,
     faces: np.ndarray,
     path: str | os.PathLike[str],
+    *,
     view: Sequence[float] = (1.0, -1.0, 0.6),
     title: str = "convex model",
     size: float = 6.0,

@@ -48,10 +48,10 @@ def shape_symmetry(shape: FacetModel) -> SymmetryGroup:
         compiled.centroids - com,
         compiled.normals,
         compiled.areas,
-        compiled.material_index,
-        compiled.tangents,
-        anisotropic,
-        shape.inertia,
+        labels=compiled.material_index,
+        tangents=compiled.tangents,
+        anisotropic=anisotropic,
+        inertia=shape.inertia,
         vertices=shape.vertices - com,
     )
 

@@ -205,7 +205,7 @@ def navigate(
             pixels = model.camera.project(seen).reshape(now.size, -1)
             pixels = pixels + model.pixel_sigma * draws.pixel_noise[k, now]
             x[now], p[now] = model.update(
-                x[now], p[now], k, pixels, ids, valid, scenario.iterations
+                x[now], p[now], k, pixels, ids, valid, iterations=scenario.iterations
             )
             taken[k, now] = True
             used[now] += 1

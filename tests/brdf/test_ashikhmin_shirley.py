@@ -18,7 +18,9 @@ def test_hand_computed_values_isotropic(direction):
     # 1. L = V = n, nu = nv = 50: NH = VH = 1, F = rs = 0.1,
     #    ρ_d = 0.1046271·(1 − 0.5⁵)² = 0.1046271·0.9384766 = 0.0981901,
     #    ρ_s = √(51·51)/(8π)·1/(1·1)·0.1 = 0.2029226 → ρ = 0.3011126.
-    value = brdf.ashikhmin_shirley(N, direction(0, 0), direction(0, 0), RD, RS, 50.0, 50.0)
+    value = brdf.ashikhmin_shirley(
+        N, direction(0, 0), direction(0, 0), rd=RD, rs=RS, nu=50.0, nv=50.0
+    )
     assert value == pytest.approx(DIFFUSE * (1 - 0.5**5) ** 2 + 51 / (8 * math.pi) * 0.1)
     assert value == pytest.approx(0.3011126, rel=1e-6)
     # 2. L at 30°, V = n: NH = VH = cos 15°, max(NL, NV) = 1, F = 0.1 + 0.9 (1 − cos 15°)⁵,
@@ -26,7 +28,9 @@ def test_hand_computed_values_isotropic(direction):
     #        = 0.0954184,
     #    ρ_s = 51/(8π)·cos¹⁵15°^(50)/cos 15°·F = 2.0292255·0.1766806/0.9659258·0.1000000
     #        = 0.0371172 → ρ = 0.1325356.
-    value = brdf.ashikhmin_shirley(N, direction(30, 0), direction(0, 0), RD, RS, 50.0, 50.0)
+    value = brdf.ashikhmin_shirley(
+        N, direction(30, 0), direction(0, 0), rd=RD, rs=RS, nu=50.0, nv=50.0
+    )
     assert value == pytest.approx(0.1325356, rel=1e-6)
 
 
@@ -41,10 +45,10 @@ def test_hand_computed_values_anisotropic(direction):
     #    e = 100: 1.3262249·0.0019888/0.9396926·0.1000007 = 0.0002807 → ρ = 0.0925766.
     tangent = np.array([1.0, 0.0, 0.0])
     along_u = brdf.ashikhmin_shirley(
-        N, direction(40, 0), direction(0, 0), RD, RS, 10.0, 100.0, tangent=tangent
+        N, direction(40, 0), direction(0, 0), rd=RD, rs=RS, nu=10.0, nv=100.0, tangent=tangent
     )
     along_v = brdf.ashikhmin_shirley(
-        N, direction(40, 90), direction(0, 0), RD, RS, 10.0, 100.0, tangent=tangent
+        N, direction(40, 90), direction(0, 0), rd=RD, rs=RS, nu=10.0, nv=100.0, tangent=tangent
     )
     assert along_u == pytest.approx(0.1680651, rel=1e-6)
     assert along_v == pytest.approx(0.0925766, rel=1e-6)
@@ -61,10 +65,10 @@ def test_isotropic_is_invariant_to_the_tangent_frame(random_geometry, angle, exp
     # A second tangent: the first one turned by `angle` about the normal (Rodrigues).
     u = tangent - np.sum(tangent * normal, -1, keepdims=True) * normal
     turned = u * math.cos(angle) + np.cross(normal, u) * math.sin(angle)
-    args = (0.4, 0.3, exponent, exponent)
-    first = brdf.ashikhmin_shirley(normal, light, view, *args, tangent=tangent)
-    second = brdf.ashikhmin_shirley(normal, light, view, *args, tangent=turned)
-    untangled = brdf.ashikhmin_shirley(normal, light, view, *args)
+    args = {"rd": 0.4, "rs": 0.3, "nu": exponent, "nv": exponent}
+    first = brdf.ashikhmin_shirley(normal, light, view, **args, tangent=tangent)
+    second = brdf.ashikhmin_shirley(normal, light, view, **args, tangent=turned)
+    untangled = brdf.ashikhmin_shirley(normal, light, view, **args)
     np.testing.assert_allclose(first, second, rtol=1e-10, atol=1e-300)
     np.testing.assert_allclose(first, untangled, rtol=1e-10, atol=1e-300)
 
@@ -72,7 +76,7 @@ def test_isotropic_is_invariant_to_the_tangent_frame(random_geometry, angle, exp
 def test_anisotropy_depends_on_the_tangent(direction):
     light, view = direction(40, 30), direction(0, 0)
     values = [
-        brdf.ashikhmin_shirley(N, light, view, 0.3, 0.3, 10.0, 100.0, tangent=t)
+        brdf.ashikhmin_shirley(N, light, view, rd=0.3, rs=0.3, nu=10.0, nv=100.0, tangent=t)
         for t in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
     ]
     assert abs(values[0] - values[1]) > 0.2 * max(values)

@@ -73,11 +73,11 @@ def test_per_facet_parameters_broadcast_over_epochs():
     rd = rng.uniform(0, 0.4, facets)
     rs = rng.uniform(0, 0.5, facets)
     exponent = rng.uniform(1, 300, facets)
-    values = brdf.ashikhmin_shirley_from_cosines(nl, nv, lv, rd, rs, exponent, exponent)
+    values = brdf.ashikhmin_shirley_from_cosines(nl, nv, lv, rd=rd, rs=rs, nu=exponent, nv=exponent)
     assert values.shape == (epochs, facets)
     for f in range(facets):
         column = brdf.ashikhmin_shirley_from_cosines(
-            nl[:, f], nv[:, f], lv[:, 0], rd[f], rs[f], exponent[f], exponent[f]
+            nl[:, f], nv[:, f], lv[:, 0], rd=rd[f], rs=rs[f], nu=exponent[f], nv=exponent[f]
         )
         np.testing.assert_allclose(values[:, f], column, rtol=1e-14)
     # Parameter tensors with numpy cosines give a tensor (the renderer's autograd path).

@@ -296,7 +296,14 @@ def itokawa_apparitions(every_days, hours, cadence_minutes):
     elongation ≥ 60°, V ≤ 18, phase ≤ 90°, one light curve per night."""
     epochs = nightly_epochs(ITOKAWA_WINDOWS, every_days, hours, cadence_minutes)
     return asteroid_geometry(
-        ITOKAWA_ORBIT, epochs, "itokawa", 60.0, *ITOKAWA_HG, max_magnitude=18.0, max_phase_deg=90
+        ITOKAWA_ORBIT,
+        epochs,
+        name="itokawa",
+        min_elongation_deg=60.0,
+        absolute_magnitude=ITOKAWA_HG[0],
+        slope=ITOKAWA_HG[1],
+        max_magnitude=18.0,
+        max_phase_deg=90,
     )
 
 
@@ -308,7 +315,7 @@ def test_itokawa_synthetic_on_its_real_apparitions():
     geometry = itokawa_apparitions(every_days=5.0, hours=5.0, cadence_minutes=15.0)
     shape = get_library().load("itokawa")
     truth = SpinState.from_degrees(128.5, -89.66, 12.132, 0.0, float(geometry.mjd.min()))
-    sim = simulate_rotator(geometry, shape, truth, GaussianNoise(0.01), seed=1)
+    sim = simulate_rotator(geometry, shape, truth, noise=GaussianNoise(0.01), seed=1)
     data = Photometry.from_observations([sim])
     period_s = truth.period_s * (1 + 3e-6)
     starts = [

@@ -92,7 +92,14 @@ def test_itokawa_apparitions_2001_and_2004():
     epochs = nightly_epochs(windows, every_days=5.0, hours=2.0, cadence_minutes=30.0)
     assert np.all(np.diff(epochs) > 0) and len(epochs) == 4 * (16 + 48)
     geometry = asteroid_geometry(
-        ITOKAWA_ORBIT, epochs, "itokawa", 60.0, *ITOKAWA_HG, max_magnitude=18.0, max_phase_deg=90
+        ITOKAWA_ORBIT,
+        epochs,
+        name="itokawa",
+        min_elongation_deg=60.0,
+        absolute_magnitude=ITOKAWA_HG[0],
+        slope=ITOKAWA_HG[1],
+        max_magnitude=18.0,
+        max_phase_deg=90,
     )
     table = geometry.table
     observer = table[["obs_x", "obs_y", "obs_z"]].to_numpy()
@@ -112,5 +119,5 @@ def test_itokawa_apparitions_2001_and_2004():
         asteroid_geometry(ITOKAWA_ORBIT, epochs, max_magnitude=18.0)
     with pytest.raises(ValueError, match="no epoch of itokawa"):
         asteroid_geometry(
-            ITOKAWA_ORBIT, epochs, "itokawa", absolute_magnitude=19.2, max_magnitude=5.0
+            ITOKAWA_ORBIT, epochs, name="itokawa", absolute_magnitude=19.2, max_magnitude=5.0
         )

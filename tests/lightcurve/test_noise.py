@@ -42,7 +42,9 @@ def constant_source(elevation_deg, site=MOUNT_LEMMON, **columns):
         }
     )
     meta = {"site": site.label} if site is not None else {}
-    return Observations(validate_table(table, "constant.csv", meta, False), meta, "constant.csv")
+    return Observations(
+        validate_table(table, "constant.csv", meta, require_magnitudes=False), meta, "constant.csv"
+    )
 
 
 def test_snr_of_a_star_matches_the_ccd_equation_worked_by_hand():
@@ -222,11 +224,15 @@ def test_elevation_from_the_site_in_the_header():
     geometry = from_horizontal(site, mjd, elevation, azimuth, rng.uniform(500.0, 4e4, 50))
     table = geometry.table().drop(columns=["elevation_deg", "azimuth_deg", "airmass"])
     bare = Observations(
-        validate_table(table, "g.csv", {"site": site.label}, False), {"site": site.label}, "g.csv"
+        validate_table(table, "g.csv", {"site": site.label}, require_magnitudes=False),
+        {"site": site.label},
+        "g.csv",
     )
     np.testing.assert_allclose(observation_elevation(bare), elevation, atol=1e-7)
     # The noise model takes the elevation either way, with the same draws.
-    full = Observations(validate_table(geometry.table(), "g.csv", {}, False), {}, "g.csv")
+    full = Observations(
+        validate_table(geometry.table(), "g.csv", {}, require_magnitudes=False), {}, "g.csv"
+    )
     noise = ObservingNoise(load_conditions(None, ["site.altitude_m=2790"]))
     a = noise.measure(np.full(50, 11.0), bare, np.random.default_rng(4))
     b = noise.measure(np.full(50, 11.0), full, np.random.default_rng(4))

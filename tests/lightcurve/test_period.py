@@ -45,10 +45,10 @@ def test_fourier_chi2_is_zero_for_an_exact_model_with_offsets():
     f = 1 / 20000.0
     psi = 2 * np.pi * f * t
     mag = 0.3 * np.cos(2 * psi) + 0.1 * np.sin(psi) + 0.05 * np.cos(3 * psi + 1) + curve * 0.7
-    chi2 = fourier_chi2(t, mag, np.full(300, 0.01), curve, np.array([f, 1.1 * f]), 3)
+    chi2 = fourier_chi2(t, mag, np.full(300, 0.01), curve, np.array([f, 1.1 * f]), order=3)
     assert chi2[0] < 1e-9 * chi2[1]
     # Without the per-night offsets the same data do not fit.
-    one_curve = fourier_chi2(t, mag, np.full(300, 0.01), np.zeros(300), np.array([f]), 3)
+    one_curve = fourier_chi2(t, mag, np.full(300, 0.01), np.zeros(300), np.array([f]), order=3)
     assert one_curve[0] > 1e3
 
 
@@ -126,7 +126,7 @@ def test_pab_corrected_scan_finds_the_sidereal_period():
     geometry = Observations(obs.table.loc[keep].reset_index(drop=True), obs.meta, obs.source)
     body = primitives.ellipsoid((2.0, 1.2, 1.0), subdivisions=3, materials=REGOLITH)
     spin = SpinState.from_degrees(40.0, 50.0, 7.0, 0.0, float(geometry.mjd.min()))
-    sim = simulate_rotator(geometry, body, spin, GaussianNoise(0.005), seed=2)
+    sim = simulate_rotator(geometry, body, spin, noise=GaussianNoise(0.005), seed=2)
     pole = (spin.lambda_rad, spin.beta_rad)
     synodic = period_search(sim, (6.9, 7.1), orders=(2, 4))
     sidereal = period_search(sim, (6.9, 7.1), orders=(2, 4), pole=pole)

@@ -78,12 +78,12 @@ def test_ransac_rejects_mismatches():
     bad = rng.random(120) < 0.3
     x2 = x2.copy()
     x2[bad] = rng.uniform(-0.4, 0.4, size=(bad.sum(), 2))
-    e, inliers = ransac_essential(x1, x2, 5e-4, rng)
+    e, inliers = ransac_essential(x1, x2, threshold=5e-4, rng=rng)
     assert np.all(~inliers[bad]) and inliers[~bad].mean() > 0.95
     r_hat, _, _ = pose_from_essential(e, x1[inliers], x2[inliers])
     assert _angle_deg(r_hat, r) < 0.1
     with pytest.raises(EpipolarError, match="at least 8"):
-        ransac_essential(x1[:7], x2[:7], 5e-4, rng)
+        ransac_essential(x1[:7], x2[:7], threshold=5e-4, rng=rng)
 
 
 def test_pose_jacobian_matches_autograd():
@@ -108,7 +108,7 @@ def test_refinement_improves_noisy_poses_and_its_covariance_is_calibrated():
     poses, pairs, truths = [], [], []
     for i in range(40):
         x1, x2, r, _ = _rotating_pair(rng.normal(size=3) * 0.08, rng, n=80, noise=3e-4)
-        e, inl = ransac_essential(x1, x2, 2e-3, rng)
+        e, inl = ransac_essential(x1, x2, threshold=2e-3, rng=rng)
         r0, t0, _ = pose_from_essential(e, x1[inl], x2[inl])
         poses.append(RelativePose(i, i + 1, r0, t0, 80, int(inl.sum())))
         pairs.append((x1[inl], x2[inl]))
@@ -141,9 +141,9 @@ def bennu_tracks():
         states[:, :4],
         t,
         CAMERA,
-        [0.0, 0.0, 2.5],
-        0.1,
-        np.random.default_rng(2),
+        position=[0.0, 0.0, 2.5],
+        pixel_sigma=0.1,
+        rng=np.random.default_rng(2),
         occluded=Occluder(v, model.faces),
     )
     return tracks, states
@@ -168,7 +168,7 @@ def test_pixels_give_relative_attitudes_within_0p2_deg(bennu_tracks):
     """Relative attitudes from pixels (per frame pair): 1024² camera, 0.1 px, hundreds of
     library-shape points."""
     tracks, states = bennu_tracks
-    seq = attitude_sequence(tracks, CAMERA, np.random.default_rng(0))
+    seq = attitude_sequence(tracks, CAMERA, rng=np.random.default_rng(0))
     assert not seq.failures
     a = np.asarray(attitude_matrix(states[:, :4]))
     pair_err = [_angle_deg(p.rotation, a[p.second].T @ a[p.first]) for p in seq.poses]
@@ -185,7 +185,7 @@ def test_linking_shortens_the_chain_of_the_consecutive_product(bennu_tracks):
     tracks, states = bennu_tracks
     depth, err = {}, {}
     for linking in ("previous", "best"):
-        seq = attitude_sequence(tracks, CAMERA, np.random.default_rng(0), linking=linking)
+        seq = attitude_sequence(tracks, CAMERA, rng=np.random.default_rng(0), linking=linking)
         depth[linking] = seq.depth
         err[linking] = np.degrees(np.asarray(attitude_angle(seq.quaternions, states[:, :4])))
     assert np.array_equal(depth["previous"], np.arange(61))
@@ -198,7 +198,7 @@ def test_a_frame_without_enough_points_is_skipped_and_recorded(bennu_tracks):
     visible = tracks.visible.copy()
     visible[5, 7:] = False  # frame 5 keeps only 7 points
     cut = FeatureTracks(tracks.times, tracks.pixels, visible, tracks.outlier)
-    seq = attitude_sequence(cut, CAMERA, np.random.default_rng(0), linking="previous")
+    seq = attitude_sequence(cut, CAMERA, rng=np.random.default_rng(0), linking="previous")
     assert list(seq.failures) == [5] and "8" in seq.failures[5]
     assert np.all(np.isnan(seq.quaternions[5]))
     # The chain continues from frame 4 to frame 6.

@@ -329,7 +329,7 @@ def test_keyframes_give_a_lower_final_attitude_covariance_than_uniform(tumbling_
     process = np.broadcast_to(q_noise, (frames, 6, 6))
     p0 = np.diag([1e-2] * 3 + [1e-4] * 3)
     count = 8
-    chosen = select_keyframes(information, transition, process, p0, count, indices=(0, 1, 2))
+    chosen = select_keyframes(information, transition, process, p0, count=count, indices=(0, 1, 2))
     assert len(chosen) == count and np.all(np.diff(chosen) > 0)
     full = Forecast(0, p0[None], transition[:, None], process[:, None], information[:, None])
     planned = np.isin(np.arange(1, frames + 1), chosen)
@@ -340,7 +340,7 @@ def test_keyframes_give_a_lower_final_attitude_covariance_than_uniform(tumbling_
     assert final_planned < 0.9 * final_uniform
     # With a largest gap (features must stay matched) the choice is by information, not recency.
     spaced = select_keyframes(
-        information, transition, process, p0, count, s_max=8, indices=(0, 1, 2)
+        information, transition, process, p0, count=count, s_max=8, indices=(0, 1, 2)
     )
     assert np.diff(np.r_[0, spaced]).max() <= 8
     planned = np.isin(np.arange(1, frames + 1), spaced)
@@ -369,7 +369,14 @@ def test_monocular_keyframes_drive_the_real_ekf():
     rng = np.random.default_rng(7)
     points, normals = box_features(rng)
     tracks = simulate_tracks(
-        points, normals, truth[:, :4], times, CAMERA, np.array([0, 0, 8.0]), SIGMA_PX, rng
+        points,
+        normals,
+        truth[:, :4],
+        times,
+        CAMERA,
+        position=np.array([0, 0, 8.0]),
+        pixel_sigma=SIGMA_PX,
+        rng=rng,
     )
     # A relative attitude from n tracked points: σ ∝ 1/√n (0.5° with 24 points).
     sigma = np.radians(0.5) * np.sqrt(24 / tracks.visible.sum(axis=1))
