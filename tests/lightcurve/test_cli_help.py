@@ -69,7 +69,11 @@ def test_every_option_has_help_and_shows_its_default(name, parser):
             action,
             argparse._StoreTrueAction | argparse._StoreFalseAction | argparse._CountAction,
         )
-        unset = default is None or default is argparse.SUPPRESS or (isinstance(default, list) and not default)
+        unset = (
+            default is None
+            or default is argparse.SUPPRESS
+            or (isinstance(default, list) and not default)
+        )
         if flag or not action.option_strings or unset:
             continue
         assert f"default: {_default_text(default)}" in shown, f"{label}: {shown!r}"
