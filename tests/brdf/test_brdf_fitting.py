@@ -1,11 +1,15 @@
 """Least-squares fits: recovery of known parameters, calibrated 1σ, constraints, Starlink."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import brdf
 
-ROOT = brdf.materials.PRESETS_PATH.parent
+ROOT = (
+    Path(__file__).resolve().parents[2] / "data"
+)  # the lab tables are real data, not package data
 
 
 def synthetic_table(model, noise_dex, rng):

@@ -1,11 +1,13 @@
 """The Starlink lab-table reader and BRDFTable."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import brdf
 
-STARLINK = brdf.materials.PRESETS_PATH.parent / "starlink"
+STARLINK = Path(__file__).resolve().parents[2] / "data" / "starlink"  # real data, not package data
 HEADER = """# (phi_i, theta_i) are the zenith and azimuth angles
 # of ingoing light
 # (phi_o, theta_o) are the zenith and azimuth angles
