@@ -262,9 +262,10 @@ class MultipleModelBank:
         model_log = self._model_log(self._log_w + log_l)
         informed = np.logical_or.reduceat(np.isfinite(log_l), self._starts)
         model_log = np.where(informed, model_log, -np.inf)
-        self._log_w = np.where(
-            informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
-        )
+        with np.errstate(invalid="ignore"):  # −∞ − (−∞) of dropped models, not taken
+            self._log_w = np.where(
+                informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
+            )
         if np.isfinite(model_log).any() and not self.all_diverged:
             with np.errstate(divide="ignore"):
                 log_post = np.log(self.probabilities) + model_log
