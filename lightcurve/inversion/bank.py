@@ -193,8 +193,8 @@ def run_bank(ctx: Context) -> InversionResult:
             )
         elif lost:
             ctx.notes.append(
-                f"{name_j}: {lost} of {bank.hypotheses(j)} filter hypotheses diverged and were "
-                "dropped (weight 0)"
+                f"{name_j}: filter hypotheses diverged and dropped (weight 0): {lost} of "
+                f"{bank.hypotheses(j)}"
             )
     if bank.all_diverged:
         ctx.notes.append(
