@@ -36,6 +36,13 @@ the residuals normalised by the measurement variance only, ``ν²/R``, and a mod
 windowed mean exceeds ``residual_factor`` times the same bound (default 4: an RMS misfit
 of twice the measurement errors) does not fit either.
 
+**Diverged filters.** A hypothesis whose filter diverges (:attr:`AttitudeUKF.divergence`)
+gets weight zero; a model whose every hypothesis has diverged is dropped: probability 0
+(below the floor: a filter that cannot be evaluated has no likelihood to recover with),
+excluded from the consistency test, its reason in :attr:`MultipleModelBank.dropped`.
+When every model has diverged the probabilities are left as they were, the estimates are
+the last finite ones, and the bank reports that no model fits.
+
 filterpy 2.0.0's ``MMAEFilterBank`` is not used: its ``predict()`` does not propagate
 UKFs (it passes ``dt = 0``), its blended covariance omits the spread of the means, its
 probabilities have no floor, and it blends quaternions linearly.
@@ -99,6 +106,8 @@ class MultipleModelBank:
         The stacked filter: the members of model ``j`` are ``ukf.x[members[j]]`` etc.
     members : list of slice
         Each model's members in :attr:`ukf`.
+    dropped : dict of str to str
+        Models whose every hypothesis diverged, with the reason of the first member.
     """
 
     def __init__(
@@ -121,6 +130,7 @@ class MultipleModelBank:
         bounds = np.cumsum([0, *(len(f) for f in filters)])
         self.members = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
         self.names = list(names)
+        self.dropped: dict[str, str] = {}
         self.floor = float(floor)
         self.window = int(window)
         self.nis_cap = float(nis_cap)
@@ -146,10 +156,39 @@ class MultipleModelBank:
     def __len__(self) -> int:
         return len(self.members)
 
+    @property
+    def alive(self) -> np.ndarray:
+        """(models,) bool: the models not dropped for divergence."""
+        return np.array([name not in self.dropped for name in self.names], dtype=bool)
+
+    @property
+    def all_diverged(self) -> bool:
+        """Every model has been dropped for divergence."""
+        return len(self.dropped) == len(self)
+
     def _floored(self, p: np.ndarray) -> np.ndarray:
+        alive = self.alive
+        p = np.where(alive, p, 0.0)
         p = p / p.sum()
-        p = np.maximum(p, self.floor)
+        p = np.where(alive, np.maximum(p, self.floor), 0.0)
         return p / p.sum()
+
+    def _drop_diverged(self) -> None:
+        """Weight zero for diverged hypotheses; drop the models with none left."""
+        diverged = self.ukf.diverged
+        if not diverged[np.isfinite(self._log_w)].any():
+            return
+        joint = np.where(diverged, -np.inf, self._log_w)
+        model_log = self._model_log(joint)
+        for j, s in enumerate(self.members):
+            if self.names[j] not in self.dropped and diverged[s].all():
+                self.dropped[self.names[j]] = str(self.ukf.divergence[s][0])
+        left = np.isfinite(model_log)
+        self._log_w = np.where(
+            left[self._model], joint - np.where(left, model_log, 0.0)[self._model], joint
+        )
+        if not self.all_diverged:
+            self.probabilities = self._floored(self.probabilities)
 
     @property
     def log_weights(self) -> list[np.ndarray]:
@@ -175,6 +214,7 @@ class MultipleModelBank:
     def predict(self, dt: float) -> None:
         """Propagate every model's filter over ``dt`` seconds."""
         self.ukf.predict(dt)
+        self._drop_diverged()
 
     def _stacked(self, hx: Sequence[Measurement]) -> Measurement:
         """One measurement function over the stacked members from one per model."""
@@ -217,22 +257,24 @@ class MultipleModelBank:
         results = [_members(result, s) for s in self.members]
         if not use:
             return results
-        log_l = np.nan_to_num(result.log_likelihood, nan=-np.inf)
+        self._drop_diverged()
+        log_l = np.where(np.isnan(result.log_likelihood), -np.inf, result.log_likelihood)
         model_log = self._model_log(self._log_w + log_l)
         informed = np.logical_or.reduceat(np.isfinite(log_l), self._starts)
         model_log = np.where(informed, model_log, -np.inf)
-        self._log_w = np.where(
-            informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
-        )
-        if np.isfinite(model_log).any():
+        with np.errstate(invalid="ignore"):  # −∞ − (−∞) of dropped models, not taken
+            self._log_w = np.where(
+                informed[self._model], self._log_w + log_l - model_log[self._model], self._log_w
+            )
+        if np.isfinite(model_log).any() and not self.all_diverged:
             with np.errstate(divide="ignore"):
                 log_post = np.log(self.probabilities) + model_log
             self.probabilities = self._floored(np.exp(log_post - np.max(log_post)))
-        for window, misfit, res, lead in zip(
-            self._nis, self._misfit, results, leaders, strict=True
+        for window, misfit, res, lead, alive in zip(
+            self._nis, self._misfit, results, leaders, self.alive, strict=True
         ):
             nis = float(res.nis[lead])
-            if math.isfinite(nis):
+            if alive and math.isfinite(nis):
                 window.add(nis)
                 misfit.add(float(res.innovation[lead]) ** 2 / r)
         return results
@@ -255,12 +297,13 @@ class MultipleModelBank:
     @property
     def consistent(self) -> np.ndarray:
         """Models whose windowed mean NIS is within the bound and whose windowed mean
-        ``ν²/R`` is within ``residual_factor`` times it (True until the window is full)."""
+        ``ν²/R`` is within ``residual_factor`` times it (True until the window is full);
+        never a dropped model."""
         full = np.array([w.full for w in self._nis])
         fits = (self.windowed_nis <= self.bound) & (
             self.windowed_misfit <= self.residual_factor * self.bound
         )
-        return ~full | fits
+        return (~full | fits) & self.alive
 
     @property
     def none_fits(self) -> bool:

@@ -48,6 +48,14 @@ uses ``S_γ = S + γ (S − R)`` and the covariance is the exact one for that ga
 ``P ← P − P_xz P_xzᵀ (2 S_γ − S)/S_γ²``; the effect fades as ``S − R`` (the state part)
 falls below ``R``.
 
+**Divergence.** A member whose propagated or updated state or covariance is not finite
+(a sigma point's rate so large that the fixed-step integration overflows, a covariance
+blown up by a lost track) has *diverged*: its last finite state is kept, frozen, its
+reason is recorded in :attr:`AttitudeUKF.divergence`, and from then on every
+measurement is gated for it with log-likelihood ``−inf``, so a bank drops it instead of
+propagating NaN. Covariances that lose positive definiteness but stay finite are repaired
+(symmetrised, eigenvalues floored) before their Cholesky factor is taken.
+
 **Gating**: a measurement whose normalised innovation squared ``ν²/S`` exceeds ``gate`` is
 rejected for that member (its state is left unchanged) and reported; a NaN measurement (a
 member without data at this epoch) is treated the same way. Dark predictions are
@@ -369,6 +377,8 @@ class AttitudeUKF:
         ``[δp, ω, θ]``; ``δp`` is zero between cycles.
     P : (B, n, n) numpy.ndarray
         Covariances of ``x``.
+    divergence : (B,) object numpy.ndarray
+        ``None`` for a live member; for a diverged one (see the module notes), the reason.
 
     Examples
     --------
@@ -408,6 +418,7 @@ class AttitudeUKF:
         if p.shape[-2:] != (self.n, self.n):
             raise ValueError(f"covariance must be {self.n}×{self.n}, got {p.shape}")
         self.P = np.array(np.broadcast_to(p, (b, self.n, self.n)))
+        self.divergence = np.full(b, None, dtype=object)
         self.fx = fx
         self.hx = hx
         self.process_noise = process_noise or ProcessNoise(params=(0.0,) * params.shape[1])
@@ -451,6 +462,7 @@ class AttitudeUKF:
         out.q = np.concatenate([f.q for f in filters])
         out.x = np.concatenate([f.x for f in filters])
         out.P = np.concatenate([f.P for f in filters])
+        out.divergence = np.concatenate([f.divergence for f in filters])
         out.fx = stack_dynamics([f.fx for f in filters], [len(f) for f in filters])
         out.hx = None
         out._noise_cache = (math.nan, None)
@@ -470,9 +482,36 @@ class AttitudeUKF:
         """(B, m) parameter estimates ``θ``."""
         return self.x[:, 6:]
 
+    @property
+    def diverged(self) -> np.ndarray:
+        """(B,) bool: the members that have diverged (see :attr:`divergence`)."""
+        return np.array([d is not None for d in self.divergence], dtype=bool)
+
     def select(self, members: Any) -> None:
         """Keep only some members (an index or boolean mask over the bank)."""
         self.q, self.x, self.P = self.q[members], self.x[members], self.P[members]
+        self.divergence = self.divergence[members]
+
+    def _commit(
+        self, q: np.ndarray, x: np.ndarray, p: np.ndarray, reason: Callable[[int], str]
+    ) -> None:
+        """Take the new ``(q̂, x̂, P)`` (``δp̂`` folded into ``q̂``) of the live members whose
+        values are all finite; the others keep their last state, and those newly failing
+        are marked diverged with the reason ``reason(member)``."""
+        ok = (
+            np.isfinite(q).all(axis=-1)
+            & np.isfinite(x).all(axis=-1)
+            & np.isfinite(p).all(axis=(-2, -1))
+            & ~self.diverged
+        )
+        failed = ~ok & ~self.diverged
+        for i in np.flatnonzero(failed):
+            self.divergence[i] = reason(int(i))
+        self.q = np.where(ok[:, None], q, self.q)
+        self.q[ok] = quaternion_normalize(self.q[ok])
+        self.x = np.where(ok[:, None], x, self.x)
+        self.x[:, :3] = 0.0
+        self.P = np.where(ok[:, None, None], 0.5 * (p + np.swapaxes(p, -1, -2)), self.P)
 
     # ------------------------------------------------------------------ cycle
     def _sigma_points(self, members: Any = _ALL) -> tuple[np.ndarray, np.ndarray]:
@@ -493,21 +532,40 @@ class AttitudeUKF:
         return self._noise_cache[1]
 
     def predict(self, dt: float) -> None:
-        """Propagate the estimates and covariances over ``dt`` seconds (USQUE step 2)."""
+        """Propagate the estimates and covariances over ``dt`` seconds (USQUE step 2).
+
+        A member whose propagated sigma points or moments are not finite diverges (see
+        :attr:`divergence`) and keeps its last state.
+        """
         if dt == 0.0:
             return
         sigmas, q = self._sigma_points()
-        q_new, w_new = self.fx(q, sigmas[..., 3:6], sigmas[..., 6:], dt)
-        q_new = np.asarray(q_new)
-        reference = q_new[:, :1]
-        dp = quaternion_to_grp(quaternion_multiply(q_new, quaternion_conjugate(reference)))
-        propagated = np.concatenate([dp, np.asarray(w_new), sigmas[..., 6:]], axis=-1)
-        x, p = unscented_moments(self.points, propagated, self._noise(dt))
-        self.q = quaternion_normalize(
-            quaternion_multiply(grp_to_quaternion(x[:, :3]), reference[:, 0])
+        with np.errstate(over="ignore", invalid="ignore"):
+            q_new, w_new = self.fx(q, sigmas[..., 3:6], sigmas[..., 6:], dt)
+            q_new, w_new = np.asarray(q_new), np.asarray(w_new)
+            norm = np.linalg.norm(q_new, axis=-1)
+            finite = (
+                np.isfinite(w_new).all(axis=(1, 2)) & np.isfinite(norm).all(1) & (norm > 0).all(1)
+            )
+            # Members that failed are carried through on their unpropagated sigma points
+            # (finite), then kept at their last state by _commit.
+            q_new = np.where(finite[:, None, None], q_new, q)
+            w_new = np.where(finite[:, None, None], w_new, sigmas[..., 3:6])
+            reference = q_new[:, :1]
+            dp = quaternion_to_grp(quaternion_multiply(q_new, quaternion_conjugate(reference)))
+            propagated = np.concatenate([dp, w_new, sigmas[..., 6:]], axis=-1)
+            x, p = unscented_moments(self.points, propagated, self._noise(dt))
+            q_mean = quaternion_multiply(grp_to_quaternion(x[:, :3]), reference[:, 0])
+        q_mean[~finite] = np.nan
+        rate = np.linalg.norm(sigmas[..., 3:6], axis=-1).max(axis=1)
+        self._commit(
+            q_mean,
+            x,
+            p,
+            lambda i: (
+                f"non-finite prediction over {dt:g} s (sigma-point rates up to {rate[i]:.3g} rad/s)"
+            ),
         )
-        x[:, :3] = 0.0
-        self.x, self.P = x, 0.5 * (p + np.swapaxes(p, -1, -2))
 
     def _measurement_moments(
         self, hx: Measurement | None, members: Any = _ALL
@@ -535,7 +593,9 @@ class AttitudeUKF:
         """
         members = _ALL if members is None else members
         z_hat, s_state, _ = self._measurement_moments(hx, members)
-        return _innovation(z, r, z_hat, s_state, np.full(len(z_hat), np.inf))
+        result = _innovation(z, r, z_hat, s_state, np.full(len(z_hat), np.inf))
+        result.log_likelihood[self.diverged[members]] = -np.inf
+        return result
 
     def update(self, z: Any, r: Any, hx: Measurement | None = None) -> UpdateResult:
         """Scalar measurement update (USQUE step 3) with innovation gating.
@@ -556,15 +616,19 @@ class AttitudeUKF:
         """
         z_hat, s_state, cross = self._measurement_moments(hx)
         result = _innovation(z, r, z_hat, s_state, np.full(len(self), self.gate))
+        diverged = self.diverged
+        if diverged.any():  # frozen: the measurement is not used and explains nothing
+            result.gated[diverged] = True
+            result.log_likelihood[diverged] = -np.inf
         s = result.variance
         s_gain = s + self.underweighting * s_state
-        gain = np.where(result.gated[:, None], 0.0, cross / s_gain[:, None])
-        x = self.x + gain * np.where(result.gated, 0.0, result.innovation)[:, None]
-        shrink = np.where(result.gated, 0.0, (2.0 * s_gain - s) / s_gain**2)
-        p = self.P - np.einsum("bi,bj->bij", cross, cross) * shrink[:, None, None]
-        self.q = quaternion_normalize(quaternion_multiply(grp_to_quaternion(x[:, :3]), self.q))
-        x[:, :3] = 0.0
-        self.x, self.P = x, 0.5 * (p + np.swapaxes(p, -1, -2))
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            gain = np.where(result.gated[:, None], 0.0, cross / s_gain[:, None])
+            x = self.x + gain * np.where(result.gated, 0.0, result.innovation)[:, None]
+            shrink = np.where(result.gated, 0.0, (2.0 * s_gain - s) / s_gain**2)
+            p = self.P - np.einsum("bi,bj->bij", cross, cross) * shrink[:, None, None]
+            q = quaternion_multiply(grp_to_quaternion(x[:, :3]), self.q)
+        self._commit(q, x, p, lambda i: "non-finite measurement update")
         return result
 
 

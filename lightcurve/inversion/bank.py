@@ -158,6 +158,7 @@ def run_bank(ctx: Context) -> InversionResult:
     times, z, r = model.times, model.magnitudes, model.errors**2
     fit_end = max(st.fit_end for st in setups)
     gated_count = 0
+    dropped_at: dict[str, float] = {}  # model → time (s) its last hypothesis diverged
 
     def update(k: int) -> EpochEstimate:
         nonlocal gated_count
@@ -168,6 +169,8 @@ def run_bank(ctx: Context) -> InversionResult:
             res = bank.evaluate(z[k], r[k], setups[bank.best].hx(k), bank.best)
             gated = False
         gated_count += gated
+        for dropped in bank.dropped.keys() - dropped_at.keys():
+            dropped_at[dropped] = float(times[k])
         q, omega, cov = bank.fused()
         return EpochEstimate(q, omega, cov, float(res.predicted[0]), gated, bank.probabilities)
 
@@ -181,9 +184,26 @@ def run_bank(ctx: Context) -> InversionResult:
         ctx.notes.append(note)
     if gated_count:
         ctx.notes.append(f"{gated_count} measurement(s) rejected by the innovation gate")
+    for j, name_j in enumerate(ctx.names):
+        lost = int(bank.ukf.diverged[bank.members[j]].sum())
+        if name_j in bank.dropped:
+            ctx.notes.append(
+                f"{name_j}: every filter hypothesis diverged ({bank.dropped[name_j]}) by "
+                f"t = {dropped_at[name_j]:.0f} s; dropped from the bank (probability 0)"
+            )
+        elif lost:
+            ctx.notes.append(
+                f"{name_j}: filter hypotheses diverged and dropped (weight 0): {lost} of "
+                f"{bank.hypotheses(j)}"
+            )
+    if bank.all_diverged:
+        ctx.notes.append(
+            "every candidate's filter diverged: the estimate is the last finite state of the "
+            "most probable one, and no candidate is taken to fit"
+        )
     if searched:
         ctx.notes.append(f"initial state fitted on the first {setups[best].fit_end:.0f} s of data")
-    if bank.none_fits:
+    if bank.none_fits and not bank.all_diverged:
         pairs = zip(ctx.names, bank.windowed_nis, bank.windowed_misfit, strict=True)
         ctx.notes.append(
             "no candidate shape fits over the last "

@@ -127,3 +127,49 @@ def test_hypotheses_within_a_model_are_weighted_by_their_likelihoods():
     q, _, _ = bank.estimate(0)
     assert math.degrees(float(attitude_angle(q, truth[-1, :4]))) < 1.0
     assert bank.probabilities[0] == 1.0
+
+
+def _bank_with_a_lost_model(models: tuple[str, ...] = ("a", "b")) -> MultipleModelBank:
+    """Model "a" is well started; model "b"'s rates are known only to ±100 rad/s, so its
+    prediction over 300 s overflows."""
+    p0 = np.diag([math.radians(5) ** 2] * 3 + [math.radians(0.2) ** 2] * 3)
+    lost = p0.copy()
+    lost[3:6, 3:6] = np.eye(3) * 1e4
+    covariance = {"a": p0, "b": lost}
+    filters = [
+        AttitudeUKF([0, 0, 0, 1.0], W_LOST, covariance[m], torque_free_dynamics(INERTIA))
+        for m in models
+    ]
+    return MultipleModelBank(filters, models, floor=1e-3 if len(models) > 1 else 0.0, window=5)
+
+
+W_LOST = np.radians([1.5, -1.0, 2.0])
+
+
+def test_a_diverged_model_is_dropped_with_probability_zero():
+    bank = _bank_with_a_lost_model()
+    times = np.arange(0.0, 3000.0, 300.0)
+    truth = propagate(np.concatenate([[0, 0, 0, 1.0], W_LOST]), times, INERTIA)
+    for k in range(len(truth)):
+        if k:
+            bank.predict(300.0)  # raised "quaternion has zero or non-finite norm" before
+        z = rotate(truth[k, :4], MODELS[0][k % 2])[k % 3]
+        bank.update(z, SIGMA**2, [_hx(0, k), _hx(0, k)])
+        if k:  # the floor does not bring it back
+            assert bank.probabilities.tolist() == [1.0, 0.0]
+    assert list(bank.dropped) == ["b"] and "non-finite prediction" in bank.dropped["b"]
+    assert not bank.consistent[1] and not bank.all_diverged and bank.best == 0
+    q, _, covariance = bank.fused()
+    assert float(attitude_angle(q, bank.estimate(0)[0])) < 1e-9
+    assert np.all(np.isfinite(covariance))
+
+
+def test_when_every_model_diverges_the_bank_says_no_model_fits():
+    bank = _bank_with_a_lost_model(("b",))
+    bank.predict(300.0)
+    bank.update(0.5, SIGMA**2, [_hx(0, 1)])
+    assert bank.all_diverged and bank.none_fits and list(bank.dropped) == ["b"]
+    # The last finite state is still the estimate; the probabilities are left as they were.
+    assert bank.probabilities.tolist() == [1.0]
+    q, _, covariance = bank.fused()
+    assert np.all(np.isfinite(q)) and np.all(np.isfinite(covariance))

@@ -226,3 +226,40 @@ def test_torque_free_propagation_matches_the_attitude_core():
                 assert np.allclose(qq, x[:, :4], atol=1e-13)
                 assert np.allclose(ww, x[:, 4:], atol=1e-15)
             assert not np.allclose(q_np, q, atol=1e-3)  # it did move
+
+
+def _overflowing_pair() -> AttitudeUKF:
+    """Two members; the second's rates are known only to ±100 rad/s, so some of its sigma
+    points spin far beyond what 1-s RK4 steps can integrate over 300 s (they overflow)."""
+    p = np.diag([0.01] * 3 + [1e-6] * 3)
+    lost = p.copy()
+    lost[3:6, 3:6] = np.eye(3) * 1e4
+    omega = [0.01, 0.0, 0.02]
+    return AttitudeUKF([0, 0, 0, 1.0], [omega, omega], np.stack([p, lost]), _dynamics())
+
+
+def _dynamics():
+    return torque_free_dynamics(np.diag([1.0, 1.6, 2.1]))
+
+
+def test_a_member_whose_prediction_overflows_diverges_and_is_frozen():
+    ukf = _overflowing_pair()
+    before = ukf.q.copy(), ukf.x.copy(), ukf.P.copy()
+    single = AttitudeUKF(ukf.q[0], ukf.omega[0], ukf.P[0], _dynamics())
+    ukf.predict(300.0)  # raised "quaternion has zero or non-finite norm" before
+    single.predict(300.0)
+    assert ukf.divergence[0] is None and "non-finite prediction" in ukf.divergence[1]
+    assert ukf.diverged.tolist() == [False, True]
+    # The live member is unaffected by its neighbour; the diverged one keeps its last state.
+    assert np.allclose(ukf.q[0], single.q[0]) and np.allclose(ukf.P[0], single.P[0])
+    for now, then in zip((ukf.q, ukf.x, ukf.P), before, strict=True):
+        assert np.array_equal(now[1], then[1])
+    # From then on every measurement is gated for it and it explains none of them.
+    result = ukf.update(0.1, 0.01, lambda q, p: q[..., 0])
+    assert result.gated.tolist() == [False, True]
+    assert result.log_likelihood[1] == -np.inf and np.isfinite(result.log_likelihood[0])
+    assert np.array_equal(ukf.P[1], before[2][1]) and not np.array_equal(ukf.P[0], single.P[0])
+    evaluated = ukf.evaluate(0.1, 0.01, lambda q, p: q[..., 0])
+    assert evaluated.log_likelihood[1] == -np.inf
+    ukf.select([1])
+    assert ukf.diverged.tolist() == [True]
