@@ -38,7 +38,7 @@ from lightcurve.observations import Observations, datetime_to_mjd
 LEVELS = (1e-3, 1e-2, 0.05, 0.2)
 NOISE_MAG = 0.02
 BASELINES = {"local_cubic": 3, "local_quadratic": 2, "straight_line": 1}
-DEFAULT_BASELINE = "local_quadratic"
+DEFAULT_BASELINE = "local_cubic"
 MAX_NIGHTS = 1000  # night geometries drawn per accepted curve before giving up
 
 

@@ -108,7 +108,7 @@ class GlintDetection:
     false_alarm: float
     window_s: float
     baseline: np.ndarray = field(repr=False)
-    degree: int = 2
+    degree: int = 3
     excess_sigma: np.ndarray = field(default=None, repr=False)
     """Brightening of every point above the baseline in units of its σ (the detector fires
     where it exceeds ``threshold_sigma``)."""
@@ -119,7 +119,7 @@ def detect_glints(
     window_s: float | None = None,
     false_alarm: float = 1e-3,
     max_flash_s: float | None = None,
-    degree: int = 2,
+    degree: int = 3,
 ) -> GlintDetection:
     """Find specular flashes above a smooth, curved baseline.
 
@@ -270,6 +270,7 @@ def _local_fit(
     window: float,
     degree: int,
     block_size: int = 2_000_000,
+    fallback_degree: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Value and variance factor of the local polynomial fit at every point of one curve.
 
@@ -295,10 +296,23 @@ def _local_fit(
         inside = j < hi[i, None]
         j = np.minimum(j, len(t) - 1)
         u = (t[j] - t[i, None]) / half
-        w = np.where(inside & keep[j], (1.0 - np.clip(np.abs(u), 0, 1) ** 3) ** 3, 0.0) / e[j] ** 2
+        tricube = np.where(inside, (1.0 - np.clip(np.abs(u), 0, 1) ** 3) ** 3, 0.0)
+        w = np.where(keep[j], tricube, 0.0) / e[j] ** 2
         design = u[..., None] ** powers  # (n, K, p)
         normal = np.einsum("nk,nkp,nkq->npq", w, design, design)
         first_row = np.linalg.pinv(normal, rcond=1e-10, hermitian=True)[:, 0, :]
+        if degree > fallback_degree:
+            # Where clipping took most of one side's weight, a high-degree polynomial fitted
+            # to the other side (and the far end of the gapped one) swings across the gap:
+            # there the leading block of the normal equations gives the low-degree fit.
+            low = fallback_degree + 1
+            gapped = np.zeros(len(i), dtype=bool)
+            for side in (u < 0, u > 0):
+                reach = np.sum(tricube * side, axis=1)
+                gapped |= np.sum(tricube * side * keep[j], axis=1) < 0.5 * reach
+            low_row = np.linalg.pinv(normal[:, :low, :low], rcond=1e-10, hermitian=True)[:, 0]
+            first_row[gapped] = 0.0
+            first_row[gapped, :low] = low_row[gapped]
         smoother = w * np.einsum("nkp,np->nk", design, first_row)  # l_ij
         value[i] = np.einsum("nk,nk->n", smoother, y[j])
         variance[i] = np.einsum("nk,nk->n", smoother**2, (e[j] / e[i, None]) ** 2)
