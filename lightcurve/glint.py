@@ -6,10 +6,13 @@ object). The epoch of a flash therefore measures the panel normal's direction at
 instant; several flashes of a stabilised object give the normal by least squares, and the
 spacing of a tumbler's flashes gives its spin period.
 
-Detection. The baseline is a local polynomial (quadratic by default: it follows the bend of
-a curve fading towards the terminator; ``degree=1`` is the running straight line) fitted over
-``window_s`` with tricube weights, with iterative clipping of brightenings above 3σ, so the
-flashes themselves do not pull it up; the scatter is estimated robustly,
+Detection. The baseline is a local polynomial (cubic by default: it follows the bend of a
+curve fading towards the terminator, and an odd degree adds no bias at the ends of the night,
+Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications", sec. 3.3;
+``degree=1`` is the running straight line) fitted over ``window_s`` with tricube weights,
+with iterative clipping of brightenings above 3σ, so the flashes themselves do not pull it
+up (where clipping takes most of one side of a window, the fit there is a straight line, so
+the polynomial does not swing across the gap); the scatter is estimated robustly,
 ``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
 baseline by ``z σ √(1 + h_i)`` (``h_i`` the leverage of the point in its local fit), with
 ``z`` chosen so that a light curve of N points of pure Gaussian noise shows any such point
@@ -137,8 +140,8 @@ def detect_glints(
         longest light curve (so the default window is a quarter of it). Ignored when
         ``window_s`` is given.
     degree : int
-        Degree of the local polynomial (0 to 3; 2 follows the bend of a fading curve, 1 is
-        the running straight line).
+        Degree of the local polynomial (0 to 3; 3 and 2 follow the bend of a fading curve,
+        3 without extra bias at the ends of a light curve; 1 is the running straight line).
 
     Returns
     -------
@@ -276,7 +279,9 @@ def _local_fit(
 
     Vectorised over (points × window neighbours), in blocks of at most ``block_size`` pairs.
     The normal equations are solved by pseudo-inverse (a degenerate window gives the
-    minimum-norm fit). Clipped points whose window keeps points on one side only, and
+    minimum-norm fit). Where the clipped points carry more than half of the tricube weight
+    of one side of a window, that point's fit has degree ``fallback_degree`` instead. Clipped
+    points whose window keeps points on one side only, and
     points whose window keeps fewer than ``2 (degree + 1)``, get the baseline interpolated
     between the nearest good fits.
     """
