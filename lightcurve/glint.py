@@ -7,8 +7,8 @@ instant; several flashes of a stabilised object give the normal by least squares
 spacing of a tumbler's flashes gives its spin period.
 
 Detection. The baseline is a local polynomial (cubic by default: it follows the bend of a
-curve fading towards the terminator, and an odd degree adds no bias at the ends of the night,
-Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications", sec. 3.3;
+curve fading towards the terminator, and an odd degree adds no extra bias at the ends of
+the night, Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications";
 ``degree=1`` is the running straight line) fitted over ``window_s`` with tricube weights,
 with iterative clipping of brightenings above 3σ, so the flashes themselves do not pull it
 up (where clipping takes most of one side of a window, the fit there is a straight line, so
