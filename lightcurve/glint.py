@@ -6,10 +6,13 @@ object). The epoch of a flash therefore measures the panel normal's direction at
 instant; several flashes of a stabilised object give the normal by least squares, and the
 spacing of a tumbler's flashes gives its spin period.
 
-Detection. The baseline is a local polynomial (quadratic by default: it follows the bend of
-a curve fading towards the terminator; ``degree=1`` is the running straight line) fitted over
-``window_s`` with tricube weights, with iterative clipping of brightenings above 3σ, so the
-flashes themselves do not pull it up; the scatter is estimated robustly,
+Detection. The baseline is a local polynomial (cubic by default: it follows the bend of a
+curve fading towards the terminator, and an odd degree adds no extra bias at the ends of
+the night, Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications";
+``degree=1`` is the running straight line) fitted over ``window_s`` with tricube weights,
+with iterative clipping of brightenings above 3σ, so the flashes themselves do not pull it
+up (where clipping takes most of one side of a window, the fit there is a straight line, so
+the polynomial does not swing across the gap); the scatter is estimated robustly,
 ``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
 baseline by ``z σ √(1 + h_i)`` (``h_i`` the leverage of the point in its local fit), with
 ``z`` chosen so that a light curve of N points of pure Gaussian noise shows any such point
@@ -108,7 +111,7 @@ class GlintDetection:
     false_alarm: float
     window_s: float
     baseline: np.ndarray = field(repr=False)
-    degree: int = 2
+    degree: int = 3
     excess_sigma: np.ndarray = field(default=None, repr=False)
     """Brightening of every point above the baseline in units of its σ (the detector fires
     where it exceeds ``threshold_sigma``)."""
@@ -119,7 +122,7 @@ def detect_glints(
     window_s: float | None = None,
     false_alarm: float = 1e-3,
     max_flash_s: float | None = None,
-    degree: int = 2,
+    degree: int = 3,
 ) -> GlintDetection:
     """Find specular flashes above a smooth, curved baseline.
 
@@ -137,8 +140,8 @@ def detect_glints(
         longest light curve (so the default window is a quarter of it). Ignored when
         ``window_s`` is given.
     degree : int
-        Degree of the local polynomial (0 to 3; 2 follows the bend of a fading curve, 1 is
-        the running straight line).
+        Degree of the local polynomial (0 to 3; 3 and 2 follow the bend of a fading curve,
+        3 without extra bias at the ends of a light curve; 1 is the running straight line).
 
     Returns
     -------
@@ -270,12 +273,15 @@ def _local_fit(
     window: float,
     degree: int,
     block_size: int = 2_000_000,
+    fallback_degree: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Value and variance factor of the local polynomial fit at every point of one curve.
 
     Vectorised over (points × window neighbours), in blocks of at most ``block_size`` pairs.
     The normal equations are solved by pseudo-inverse (a degenerate window gives the
-    minimum-norm fit). Clipped points whose window keeps points on one side only, and
+    minimum-norm fit). Where the clipped points carry more than half of the tricube weight
+    of one side of a window, that point's fit has degree ``fallback_degree`` instead. Clipped
+    points whose window keeps points on one side only, and
     points whose window keeps fewer than ``2 (degree + 1)``, get the baseline interpolated
     between the nearest good fits.
     """
@@ -295,10 +301,23 @@ def _local_fit(
         inside = j < hi[i, None]
         j = np.minimum(j, len(t) - 1)
         u = (t[j] - t[i, None]) / half
-        w = np.where(inside & keep[j], (1.0 - np.clip(np.abs(u), 0, 1) ** 3) ** 3, 0.0) / e[j] ** 2
+        tricube = np.where(inside, (1.0 - np.clip(np.abs(u), 0, 1) ** 3) ** 3, 0.0)
+        w = np.where(keep[j], tricube, 0.0) / e[j] ** 2
         design = u[..., None] ** powers  # (n, K, p)
         normal = np.einsum("nk,nkp,nkq->npq", w, design, design)
         first_row = np.linalg.pinv(normal, rcond=1e-10, hermitian=True)[:, 0, :]
+        if degree > fallback_degree:
+            # Where clipping took most of one side's weight, a high-degree polynomial fitted
+            # to the other side (and the far end of the gapped one) swings across the gap:
+            # there the leading block of the normal equations gives the low-degree fit.
+            low = fallback_degree + 1
+            gapped = np.zeros(len(i), dtype=bool)
+            for side in (u < 0, u > 0):
+                reach = np.sum(tricube * side, axis=1)
+                gapped |= np.sum(tricube * side * keep[j], axis=1) < 0.5 * reach
+            low_row = np.linalg.pinv(normal[:, :low, :low], rcond=1e-10, hermitian=True)[:, 0]
+            first_row[gapped] = 0.0
+            first_row[gapped, :low] = low_row[gapped]
         smoother = w * np.einsum("nkp,np->nk", design, first_row)  # l_ij
         value[i] = np.einsum("nk,nk->n", smoother, y[j])
         variance[i] = np.einsum("nk,nk->n", smoother**2, (e[j] / e[i, None]) ** 2)

@@ -1,6 +1,6 @@
 """Glint analysis of a light curve (Gou et al. 2016, sec. 2.2).
 
-Detects specular flashes above a smooth baseline (a local quadratic that follows the bend of
+Detects specular flashes above a smooth baseline (a local cubic that follows the bend of
 a curve fading towards the terminator) at a stated false-alarm probability, and gives for
 each glint its epoch (with 1σ error), brightening and the phase-angle bisector (PAB)
 direction in the file's inertial frame. With three or more glints
@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--degree",
         type=int,
         choices=(0, 1, 2, 3),
-        default=2,
+        default=3,
         help="degree of the local polynomial baseline (1: running straight line)",
     )
     parser.add_argument(

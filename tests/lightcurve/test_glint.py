@@ -180,8 +180,8 @@ def test_geo_box_wing_with_two_lobe_array_flashes_and_gives_its_normal(geo_night
 
 def test_no_false_glint_on_a_panel_fading_towards_its_terminator():
     """A flat panel fixed in inertial space, 56° off the night's PAB track, over an 8-hour
-    GEO night: its curve bends by 1.6 mag in the last 1.2 h. The local quadratic baseline
-    gives no glint at FA = 1e-3 for any of three noise draws; the straight line does."""
+    GEO night: its curve bends by 1.6 mag in the last 1.2 h. The local cubic baseline
+    (default) gives no glint at FA = 1e-3 for any of three noise draws; the straight line does."""
     start = datetime_to_mjd(pd.DatetimeIndex([pd.Timestamp("2026-01-15T03:20", tz="UTC")]))[0]
     orbit = CircularOrbit.geostationary(-110.0, start)
     mjd = start + np.arange(0.0, 8 * 3600.0, 60.0) / 86400.0
@@ -206,6 +206,24 @@ def test_no_false_glint_on_a_panel_fading_towards_its_terminator():
         assert detect_glints(sim, false_alarm=1e-3).glints == []
         straight += len(detect_glints(sim, false_alarm=1e-3, degree=1).glints)
     assert straight >= 1
+
+
+def test_cubic_baseline_does_not_swing_across_a_long_flash_near_the_start():
+    """A 6 mag flash (σ = 15 min) one hour into a fading 8-hour curve: clipped from the
+    windows beside it, it leaves only a few points on one side, where a cubic fitted to them
+    would swing across the gap (splitting the flash and losing up to 1.3 mag of it). The
+    baseline falls back to a straight line there: one glint, at the flash, at full height."""
+    rng = np.random.default_rng(0)
+    obs = _noise_curve(rng, n=500)
+    t = obs.times * 6.0  # 60 s cadence
+    flash = -6.0 * np.exp(-0.5 * ((t - 4000.0) / 900.0) ** 2)
+    table = obs.table.assign(
+        mjd=60000 + t / 86400, mag=11 + 1.5 * (t / t[-1]) ** 2 + flash + rng.normal(0, 0.02, 500)
+    )
+    glints = detect_glints(Observations(table, {}), degree=3).glints
+    assert len(glints) == 1
+    assert abs(glints[0].time_s - 4000.0) < 60.0
+    assert abs(glints[0].amplitude_mag - 6.0) < 0.2
 
 
 def test_detection_options_are_checked():
