@@ -3,6 +3,12 @@
 import os
 
 import torch
+from hypothesis import settings
+
+# Property-based tests draw their examples from a fixed seed: the same examples on every run
+# and every machine (a failure is reproducible, never a flake of the draw).
+settings.register_profile("deterministic", derandomize=True, print_blob=True)
+settings.load_profile("deterministic")
 
 # pytest-xdist runs one worker per core; torch's and BLAS's own threads on top of that
 # oversubscribe the machine (each elementwise op then waits on spinning threads). The
