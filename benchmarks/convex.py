@@ -87,10 +87,10 @@ from lightcurve.convex.minkowski import (
 )
 from lightcurve.convex.scan import SCAN_SETTINGS, EarlyRejection, period_profile, refine
 from lightcurve.ephemeris import (
-    ITOKAWA_HG,
-    ITOKAWA_ORBIT,
+    ITOKAWA_APPARITIONS,
     HeliocentricOrbit,
     asteroid_geometry,
+    itokawa_geometry,
     nightly_epochs,
 )
 from lightcurve.simulate import GaussianNoise
@@ -119,7 +119,6 @@ EROS_LIKE_ORBIT = HeliocentricOrbit(1.458, 0.223, 10.83, 304.3, 178.9, 0.0, 5100
 EROS_LIKE_HG = (10.4, 0.46)
 SIMULATED_SPIN = (17.0, 11.0, 5.270)  # λ, β (deg), P (h)
 SIMULATED_WINDOW = (42413.0, 58849.0)  # 1975-01-01 … 2020-01-01
-ITOKAWA_WINDOWS = [(51930.0, 52010.0), (53010.0, 53250.0)]
 
 
 def _pole_error_deg(solution, lambda_deg: float, beta_deg: float) -> float:
@@ -255,17 +254,8 @@ def ariadne_profile(data: Photometry, free: tuple[str, ...]) -> dict:
 
 def itokawa_apparitions() -> object:
     """Itokawa's 2001 and 2004 apparitions from the geocentre (see the module docstring)."""
-    epochs = nightly_epochs(ITOKAWA_WINDOWS, every_days=3.0, hours=5.0, cadence_minutes=10.0)
-    return asteroid_geometry(
-        ITOKAWA_ORBIT,
-        epochs,
-        name="itokawa",
-        min_elongation_deg=60.0,
-        absolute_magnitude=ITOKAWA_HG[0],
-        slope=ITOKAWA_HG[1],
-        max_magnitude=18.0,
-        max_phase_deg=90,
-    )
+    epochs = nightly_epochs(ITOKAWA_APPARITIONS, every_days=3.0, hours=5.0, cadence_minutes=10.0)
+    return itokawa_geometry(epochs)
 
 
 def itokawa(poles: int) -> dict:

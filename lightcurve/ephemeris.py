@@ -583,14 +583,36 @@ def nightly_epochs(
 ITOKAWA_ORBIT = HeliocentricOrbit(1.324, 0.280, 1.62, 69.1, 162.8, 24.1645, 53182.0)
 #: Itokawa's H, G (V band) for observability limits.
 ITOKAWA_HG = (19.2, 0.21)
+#: Itokawa's 2001 (Feb–Apr) and 2004 (Jan–Aug) apparitions, MJD windows.
+ITOKAWA_APPARITIONS = ((51930.0, 52010.0), (53010.0, 53250.0))
+
+
+def itokawa_geometry(mjd: np.ndarray) -> Observations:
+    """Itokawa from the geocentre at the epochs ``mjd`` (MJD, UTC) where a ground telescope sees it.
+
+    Kept: solar elongation ≥ 60°, V ≤ 18 (from :data:`ITOKAWA_HG`), phase angle ≤ 90°; one light
+    curve per night (:func:`asteroid_geometry`).
+    """
+    return asteroid_geometry(
+        ITOKAWA_ORBIT,
+        mjd,
+        name="itokawa",
+        min_elongation_deg=60.0,
+        absolute_magnitude=ITOKAWA_HG[0],
+        slope=ITOKAWA_HG[1],
+        max_magnitude=18.0,
+        max_phase_deg=90.0,
+    )
 
 
 __all__ += [
+    "ITOKAWA_APPARITIONS",
     "ITOKAWA_HG",
     "ITOKAWA_ORBIT",
     "HeliocentricOrbit",
     "asteroid_geometry",
     "earth_heliocentric",
     "hg_magnitude",
+    "itokawa_geometry",
     "nightly_epochs",
 ]

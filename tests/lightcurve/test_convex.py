@@ -33,9 +33,8 @@ from lightcurve.convex.minkowski import (
 from lightcurve.convex.model import ConvexModel
 from lightcurve.convex.scan import refine
 from lightcurve.ephemeris import (
-    ITOKAWA_HG,
-    ITOKAWA_ORBIT,
-    asteroid_geometry,
+    ITOKAWA_APPARITIONS,
+    itokawa_geometry,
     nightly_epochs,
 )
 from lightcurve.observations import Observations
@@ -288,23 +287,12 @@ def test_ariadne_reduced_inversion_and_period_scan():
 
 #: Itokawa's 2001 and 2004 apparitions (MJD windows; the elongation, brightness and phase
 #: limits pick the observable nights).
-ITOKAWA_WINDOWS = [(51930.0, 52010.0), (53010.0, 53250.0)]
 
 
 def itokawa_apparitions(every_days, hours, cadence_minutes):
-    """Geometry of Itokawa's 2001 and 2004 apparitions seen from the geocentre: solar
-    elongation ≥ 60°, V ≤ 18, phase ≤ 90°, one light curve per night."""
-    epochs = nightly_epochs(ITOKAWA_WINDOWS, every_days, hours, cadence_minutes)
-    return asteroid_geometry(
-        ITOKAWA_ORBIT,
-        epochs,
-        name="itokawa",
-        min_elongation_deg=60.0,
-        absolute_magnitude=ITOKAWA_HG[0],
-        slope=ITOKAWA_HG[1],
-        max_magnitude=18.0,
-        max_phase_deg=90,
-    )
+    """Geometry of Itokawa's 2001 and 2004 apparitions seen from the geocentre."""
+    epochs = nightly_epochs(ITOKAWA_APPARITIONS, every_days, hours, cadence_minutes)
+    return itokawa_geometry(epochs)
 
 
 def test_itokawa_synthetic_on_its_real_apparitions():

@@ -9,12 +9,13 @@ from hypothesis import strategies as st
 
 from lightcurve.ephemeris import (
     AU_KM,
-    ITOKAWA_HG,
+    ITOKAWA_APPARITIONS,
     ITOKAWA_ORBIT,
     HeliocentricOrbit,
     asteroid_geometry,
     earth_heliocentric,
     hg_magnitude,
+    itokawa_geometry,
     nightly_epochs,
 )
 
@@ -88,19 +89,9 @@ def test_itokawa_apparitions_2001_and_2004():
     """The 2004 approach passes within 0.02 AU (0.0133 AU on 2004 June 26); the Earth is
     then seen from Itokawa far above its equator (its pole is near the ecliptic south pole),
     while in 2001 it is below: the two apparitions see opposite hemispheres."""
-    windows = [(51930.0, 52010.0), (53010.0, 53250.0)]
-    epochs = nightly_epochs(windows, every_days=5.0, hours=2.0, cadence_minutes=30.0)
+    epochs = nightly_epochs(ITOKAWA_APPARITIONS, every_days=5.0, hours=2.0, cadence_minutes=30.0)
     assert np.all(np.diff(epochs) > 0) and len(epochs) == 4 * (16 + 48)
-    geometry = asteroid_geometry(
-        ITOKAWA_ORBIT,
-        epochs,
-        name="itokawa",
-        min_elongation_deg=60.0,
-        absolute_magnitude=ITOKAWA_HG[0],
-        slope=ITOKAWA_HG[1],
-        max_magnitude=18.0,
-        max_phase_deg=90,
-    )
+    geometry = itokawa_geometry(epochs)
     table = geometry.table
     observer = table[["obs_x", "obs_y", "obs_z"]].to_numpy()
     sun = table[["sun_x", "sun_y", "sun_z"]].to_numpy()
