@@ -1,5 +1,9 @@
 """`lightcurve shapes …` through the CLI: round trip, errors, built-ins."""
 
+import contextlib
+import io
+import shutil
+
 import numpy as np
 import pytest
 from matplotlib.image import imread
@@ -25,18 +29,26 @@ def _run(capsys, *argv):
     return code, out, err
 
 
-@pytest.fixture
-def mesh_file(tmp_path):
+def _l_shape_obj() -> str:
     """An L-shaped (non-convex) OBJ with two groups, in km."""
     a = primitives.box((0.002, 0.001, 0.001))
     tower = a.vertices + np.array([0.0005, 0.001, 0.0])
-    path = tmp_path / "ell.obj"
     lines = [f"v {x} {y} {z}" for x, y, z in np.vstack([a.vertices, tower]).tolist()]
     lines.append("g base")
     lines += [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in a.faces]
     lines.append("g tower")
     lines += [f"f {i + 9} {j + 9} {k + 9}" for i, j, k in a.faces]
-    path.write_text("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
+
+
+L_SHAPE_OBJ = _l_shape_obj()
+
+
+@pytest.fixture
+def mesh_file(tmp_path):
+    """The L-shaped OBJ in a file."""
+    path = tmp_path / "ell.obj"
+    path.write_text(L_SHAPE_OBJ)
     return path
 
 
@@ -106,6 +118,18 @@ def test_round_trip_add_list_show_render_remove(tmp_path, capsys, mesh_file):
     assert code == 0 and "0 shapes" in out
 
 
+@pytest.fixture(scope="module")
+def library_with_first(tmp_path_factory):
+    """A library holding one non-convex shape, "first" (its visibility table built once)."""
+    folder = tmp_path_factory.mktemp("first")
+    mesh = folder / "ell.obj"
+    mesh.write_text(L_SHAPE_OBJ)
+    library = folder / "lib"
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["shapes", "add", "first", str(mesh), "--library", str(library)]) == 0
+    return library
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -124,11 +148,10 @@ def test_round_trip_add_list_show_render_remove(tmp_path, capsys, mesh_file):
     ],
 )
 def test_errors_are_one_line_and_leave_library_unchanged(
-    tmp_path, capsys, mesh_file, argv, message
+    tmp_path, capsys, mesh_file, library_with_first, argv, message
 ):
     library = tmp_path / "lib"
-    assert main(["shapes", "add", "first", str(mesh_file), "--library", str(library)]) == 0
-    capsys.readouterr()
+    shutil.copytree(library_with_first, library)
     malformed = tmp_path / "malformed.obj"
     malformed.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
     replace = {"MESH": str(mesh_file), "MALFORMED": str(malformed), "OUT": str(tmp_path / "o.png")}
@@ -167,15 +190,15 @@ def test_validate_passes_on_every_builtin_shape(capsys):
     assert "9 of 9 shapes valid" in out
 
 
-def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file):
+def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file, library_with_first):
     library = tmp_path / "lib"
-    for name in ("one", "two"):
-        assert main(["shapes", "add", name, str(mesh_file), "--library", str(library)]) == 0
-    with open(library / "one.obj", "a") as handle:
+    shutil.copytree(library_with_first, library)
+    assert main(["shapes", "add", "two", str(mesh_file), "--library", str(library)]) == 0
+    with open(library / "first.obj", "a") as handle:
         handle.write("# edited\n")
     code, out, err = _run(capsys, "validate", "--library", str(library))
     assert code != 0
-    assert "FAILED one" in err and "sha256" in err
+    assert "FAILED first" in err and "sha256" in err
     assert "ok two" in out and "1 of 2 shapes valid" in out
 
 
