@@ -2,6 +2,7 @@
 
 import os
 
+import pytest
 import torch
 from hypothesis import settings
 
@@ -18,3 +19,54 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     torch.set_num_threads(1)
     for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[variable] = "1"
+
+
+# ------------------------------------------------------------------ balancing the xdist workers
+# CPU seconds of the longest test modules on the CI machine (first tests of a fresh clone:
+# numba's compilation included), measured with
+# `CI_TIME_LOG=… python -m pytest -n 2 --dist worksteal -p benchmarks.ci_time` (see
+# benchmarks/ci_time.py); a node-id prefix may name one test or parametrised case. Only the
+# order of the tests depends on these figures: a stale or missing entry makes the run less
+# balanced, never wrong.
+LONG_RUNNING_S: dict[str, float] = {
+    "tests/lightcurve/test_invert_batch.py": 80.0,
+    "tests/lightcurve/test_cli_help.py": 74.0,
+}
+
+
+@pytest.hookimpl(trylast=True)  # after pytest's own reordering by fixture scope
+def pytest_collection_modifyitems(config, items):
+    """Start the long tests first on every xdist worker, spread over the workers.
+
+    ``--dist worksteal`` hands worker k the k-th contiguous share of the collection and lets
+    an idle worker steal the end of another's queue. The long modules (``LONG_RUNNING_S``)
+    are dealt to the shares so their CPU time is balanced, longest first, and head their
+    share; the other tests keep their order and fill the shares to xdist's counts. A test
+    module stays in one piece, so its module-scoped fixtures are built once.
+    """
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers < 2 or not LONG_RUNNING_S:
+        return
+    blocks: dict[str, list] = {}
+    short = []
+    for item in items:
+        key = next((k for k in LONG_RUNNING_S if item.nodeid.startswith(k)), None)
+        if key is None:
+            short.append(item)
+        else:
+            blocks.setdefault(key, []).append(item)
+    shares: list[list] = [[] for _ in range(workers)]
+    load = [0.0] * workers
+    for key in sorted(blocks, key=LONG_RUNNING_S.__getitem__, reverse=True):
+        k = load.index(min(load))
+        shares[k].extend(blocks[key])
+        load[k] += LONG_RUNNING_S[key]
+    ordered = []
+    remaining = len(items)
+    for k, share in enumerate(shares):
+        size = remaining // (workers - k)  # xdist's first hand-out to each worker
+        fill = max(0, size - len(share))
+        ordered += share + short[:fill]
+        del short[:fill]
+        remaining -= len(share) + fill
+    items[:] = ordered + short
