@@ -4,9 +4,9 @@ Forty simulated inputs, one truncated, one with a NaN magnitude and one whose he
 shape the library does not have: 37 "ok" summaries and 3 "error" records with clear
 messages; a run killed with SIGKILL midway and rerun finishes with no partial files and no
 repeated work; the same batch on a real ``dask.distributed.LocalCluster`` gives the same
-summaries (floating-point fields to rounding). The filters start at the simulation's
-initial state (``--init none``) so the 40 inversions take seconds; the searches are tested
-in ``test_inversion.py``.
+summaries as that resumed local batch (floating-point fields to rounding). The filters start
+at the simulation's initial state (``--init none``) so the 40 inversions take seconds; the
+searches are tested in ``test_inversion.py``.
 """
 
 from __future__ import annotations
@@ -134,8 +134,14 @@ def check_complete(out: Path) -> None:
     assert not list(out.rglob("*.tmp"))
 
 
-def test_killed_batch_resumes_without_repeating_work(inputs, tmp_path):
-    out = tmp_path / "out"
+@pytest.fixture(scope="module")
+def resumed(inputs, tmp_path_factory) -> tuple[Path, dict[str, int], dict[str, int]]:
+    """A batch killed with SIGKILL after eight summaries, then rerun to the end.
+
+    Returns the output folder and the summaries' modification times (ns) after the kill and
+    after the rerun.
+    """
+    out = tmp_path_factory.mktemp("resumed") / "out"
     cli = [sys.executable, "-m", "lightcurve.cli", *command(inputs, out)]
     process = subprocess.Popen(cli, start_new_session=True, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 300
@@ -149,24 +155,28 @@ def test_killed_batch_resumes_without_repeating_work(inputs, tmp_path):
     assert 8 <= len(before) < N_INPUTS
     for path in out.glob("*/summary.json"):
         json.loads(path.read_text())  # every summary on disk is whole
-
     assert main(command(inputs, out)) == 1  # three inputs are bad
-    check_complete(out)
     after = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("*/summary.json")}
+    return out, before, after
+
+
+def test_killed_batch_resumes_without_repeating_work(resumed):
+    out, before, after = resumed
+    check_complete(out)
     redone = {stem for stem in before if after[stem] != before[stem]}
     assert redone <= set(BAD)  # only error records are retried; finished work is not redone
 
 
-def test_dask_cluster_gives_the_same_summaries(inputs, tmp_path):
-    assert main(command(inputs, tmp_path / "local")) == 1
-    check_complete(tmp_path / "local")
+def test_dask_cluster_gives_the_same_summaries(inputs, resumed, tmp_path):
+    """The Dask batch equals the local one (the resumed batch: killed, then rerun here)."""
+    local = resumed[0]
     with LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
         code = main(command(inputs, tmp_path / "dask", "--scheduler", cluster.scheduler_address))
     assert code == 1
     check_complete(tmp_path / "dask")
-    local, dask = summaries(tmp_path / "local"), summaries(tmp_path / "dask")
+    local, dask = summaries(local), summaries(tmp_path / "dask")
     assert local.keys() == dask.keys()
     for stem in local:
         assert same_record(dask[stem], local[stem]), (stem, dask[stem], local[stem])
