@@ -174,11 +174,15 @@ def test_builtin_library_is_read_only(capsys, mesh_file, action):
     assert _snapshot(builtin_library_path()) == before
 
 
-def test_environment_selects_the_library(tmp_path, capsys, monkeypatch, mesh_file):
+def test_environment_selects_the_library(tmp_path, capsys, monkeypatch, library_with_first):
+    shutil.copytree(library_with_first, tmp_path / "env")
     monkeypatch.setenv("LIGHTCURVE_LIBRARY", str(tmp_path / "env"))
-    assert main(["shapes", "add", "ell", str(mesh_file)]) == 0
     code, out, _ = _run(capsys, "list")
-    assert code == 0 and str(tmp_path / "env") in out and "ell" in out
+    assert code == 0 and str(tmp_path / "env") in out and "first" in out
+    code, out, _ = _run(capsys, "remove", "first")  # written to the library the variable names
+    assert code == 0 and "removed first" in out
+    code, out, _ = _run(capsys, "list", "--library", str(tmp_path / "env"))
+    assert code == 0 and "0 shapes" in out
 
 
 def test_validate_passes_on_every_builtin_shape(capsys):
