@@ -129,7 +129,7 @@ class FusedFlux:
         self.padding = layout.padding
         self.facets = np.ascontiguousarray(table[:, layout.source])
         self.facets[3, layout.padding] = 0.0
-        self.cones = layout.cones
+        self.cones = np.ascontiguousarray(layout.cones, dtype=self.dtype)
         self._blocks = [
             (ROW_KERNELS[kind], int(first), int(last), np.asarray(row, dtype=np.float64))
             for (kind, _, _, row), (first, last) in zip(blocks, layout.block_tiles, strict=True)
