@@ -31,12 +31,13 @@ cone of each tile, ``first``/``last`` the block's tiles, ``p`` its float64 param
 ``None`` (a separate compilation: no multiplication by one), ``out`` float64. Arithmetic is
 in the dtype of ``facets``.
 
-Lambert loops over every facet: its term costs less than the tile test would. The other
-kernels skip the tiles with no facet both lit and seen (:mod:`lightcurve.kernels.tiles`;
-about 35 % of 1280 facets and 28 % of 20 480 are evaluated at random geometry on a convex
-body): two dot products per tile against its cone, in the compute dtype over contiguous
-cone arrays so that the test runs on vectors, then the runs of visible tiles (together
-about 0.6 of a Lambert row on 1280 facets; 1.6 with the float64 cones indexed per tile).
+Lambert loops over every facet: the tile test and its runs cost about as much as the part
+of Lambert's loop they would skip. The other kernels skip the tiles with no facet both lit
+and seen (:mod:`lightcurve.kernels.tiles`; about 35 % of 1280 facets and 28 % of 20 480 are
+evaluated at random geometry on a convex body): two dot products per tile against its
+cone, in the compute dtype over contiguous cone arrays so that the test runs on vectors,
+then the runs of visible tiles (together about 0.6 of a Lambert row on 1280 facets; 1.6
+with the float64 cones indexed per tile).
 Lommel–Seeliger sums each run in one loop. The specular kernels evaluate a row in three
 loops: over the runs, everything but the lobe (the diffuse sum, and
 per facet the lobe's weight and base), then ``base ← e log₂(base)``, then
