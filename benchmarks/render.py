@@ -10,6 +10,10 @@ One run measures, each with its baseline and the ratio (best of ``--repeats``):
   epoch), relative to the 1280-facet rate;
 * every BRDF on one thread in CPU time (``time.thread_time``: what other processes take
   of a shared machine's cores is left out), with Lambert's rate over each;
+* with ``--against REV``: the fused kernels of git revision ``REV`` (``lightcurve/kernels/``
+  as it was there, imported under another name) against the current ones, every BRDF, one
+  thread, CPU time of the facet sums alone, alternated repeats (the before/after of a kernel
+  change measured in one run);
 * the one-off cost of the first call in a fresh process (kernel compilation, or loading it
   from numba's on-disk cache) measured in a subprocess;
 * the cost of a small call (13 sigma points × one epoch of a 24-facet cylinder, the UKF's),
@@ -18,16 +22,19 @@ One run measures, each with its baseline and the ratio (best of ``--repeats``):
 
 Prints JSON with the machine and its load.
 
-    python -m benchmarks.render [--epochs 10000] [--repeats 3] [--threads N]
+    python -m benchmarks.render [--epochs 10000] [--repeats 3] [--threads N] [--against REV]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
+import pathlib
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -47,6 +54,7 @@ MATERIALS = {
     "ashikhmin-shirley": {"rd": 0.3, "rs": 0.4, "nu": 100.0, "nv": 100.0},
     "anisotropic": {"rd": 0.3, "rs": 0.4, "nu": 10.0, "nv": 1000.0},
     "lommel-seeliger": {"w": 0.2, "c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5},
+    "two-lobe": {"rd": 0.2, "rb": 0.3, "ab": 0.3, "fb": 0.9, "rn": 0.3, "mn": 0.1, "fn": 0.04},
 }
 
 
@@ -167,6 +175,90 @@ def single_thread_cpu_rates(sphere, q, sun, obs, repeats: int) -> dict:
     return out
 
 
+def kernels_at(revision: str):
+    """``lightcurve/kernels/`` of git ``revision``, imported as a package of another name."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", *args], cwd=root, check=True, capture_output=True, text=True
+        ).stdout
+
+    name = "kernels_" + git("rev-parse", "--short", revision).strip()
+    folder = pathlib.Path(tempfile.mkdtemp(prefix="render-kernels-")) / name
+    folder.mkdir()
+    for path in git("ls-tree", "--name-only", revision, "lightcurve/kernels/").split():
+        if path.endswith(".py"):
+            text = git("show", f"{revision}:{path}").replace("lightcurve.kernels", name)
+            (folder / pathlib.Path(path).name).write_text(text)
+    sys.path.insert(0, str(folder.parent))
+    return importlib.import_module(name)
+
+
+def fused_flux(kernels, renderer: Renderer):
+    """``renderer``'s facets and materials as a ``FusedFlux`` of the package ``kernels``."""
+    compiled, order = renderer.compiled, renderer._order
+    dtype = renderer._numpy_dtype
+    table = kernels.facet_table(
+        compiled.normals[order], compiled.areas[order], compiled.tangents[order], dtype
+    )
+    blocks = []
+    for block in renderer._blocks:
+        kind, row = kernels.block_parameters(
+            block.model.name, block.model.params, block.model.anisotropic
+        )
+        blocks.append((kind, block.start, block.stop, row))
+    return kernels.FusedFlux(table, blocks, dtype)
+
+
+def against_revision(revision: str, sphere, q, sun, obs, repeats: int) -> dict:
+    """Facet sums of every BRDF by the kernels of ``revision`` and by the current ones: one
+    thread, CPU time, best of ``repeats`` alternated runs, with Lambert's rate over each."""
+    previous = kernels_at(revision)
+    out = {"revision": revision}
+    for dtype in (torch.float32, torch.float64):
+        key = str(dtype).split(".")[-1]
+        seconds = {}
+        for name in MATERIALS:
+            renderer = Renderer(material_shape(sphere, name), dtype=dtype)
+            if any(block.model.name not in previous.KINDS for block in renderer._blocks):
+                continue  # no fused kernel for this BRDF at that revision
+            pair = {"previous": fused_flux(previous, renderer), "current": renderer._fused_flux()}
+            light, view, _ = pair["current"].geometry(q, sun, obs, 0.0)
+            sums = {tag: flux.sums(light, view) for tag, flux in pair.items()}  # compiles
+            best = dict.fromkeys(pair, np.inf)
+            previous.set_num_threads(1)
+            set_num_threads(1)
+            try:
+                for _ in range(repeats):
+                    for tag, flux in pair.items():
+                        start = time.thread_time()
+                        flux.sums(light, view)
+                        best[tag] = min(best[tag], time.thread_time() - start)
+            finally:
+                previous.set_num_threads(None)
+                set_num_threads(None)
+            scale = np.max(np.abs(sums["previous"]))
+            seconds[name] = best | {
+                "max_relative_difference": float(
+                    np.max(np.abs(sums["current"] - sums["previous"])) / scale
+                )
+            }
+        facet_epochs = len(sphere.compiled()) * len(q)
+        out[key] = {
+            name: {
+                "previous_facet_epochs_per_cpu_second": facet_epochs / value["previous"],
+                "current_facet_epochs_per_cpu_second": facet_epochs / value["current"],
+                "speedup": value["previous"] / value["current"],
+                "lambert_over_this_previous": value["previous"] / seconds["lambert"]["previous"],
+                "lambert_over_this_current": value["current"] / seconds["lambert"]["current"],
+                "max_relative_difference": value["max_relative_difference"],
+            }
+            for name, value in seconds.items()
+        }
+    return out
+
+
 def first_call_seconds(dtype: str) -> dict:
     """Fresh-process cost of the first fused call: import, compile or cache load, render."""
     code = (
@@ -206,6 +298,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument(
         "--threads", type=int, help="torch intra-op threads (default: torch's own choice)"
+    )
+    parser.add_argument(
+        "--against", metavar="REV", help="also time the fused kernels of git revision REV"
     )
     args = parser.parse_args()
     if args.threads:
@@ -267,6 +362,11 @@ def main() -> None:
                 "ashikhmin_shirley_scaling": scaling,
                 "single_thread_cpu_time": single_thread_cpu_rates(
                     sphere, q, sun, obs, max(args.repeats, 5)
+                ),
+                "previous_kernels": (
+                    against_revision(args.against, sphere, q, sun, obs, max(args.repeats, 5))
+                    if args.against
+                    else None
                 ),
                 "first_call_fresh_process": first_calls,
                 "small_calls": small_calls(args.repeats),

@@ -58,7 +58,7 @@ def facet_table(
 
 
 def block_parameters(name: str, params: dict[str, float], anisotropic: bool) -> tuple[int, list]:
-    """Kernel code and parameter row (six numbers) of a BRDF material.
+    """Kernel code and parameter row (eight numbers) of a BRDF material.
 
     The row holds the factors of the formula that are constant over the material (see
     :mod:`lightcurve.kernels.brdf_sums`).
@@ -90,10 +90,22 @@ def block_parameters(name: str, params: dict[str, float], anisotropic: bool) -> 
             p["nu"],
             p["nv"],
         ]
+    elif name == "two-lobe":  # the narrow lobe as Cook–Torrance's, then the broad one
+        inv_m2 = 1.0 / (p["mn"] * p["mn"])
+        alpha2 = p["ab"] * p["ab"]
+        row = [
+            p["rd"] * _INV_PI,
+            (p["rn"] * 0.25 * _INV_PI) * inv_m2,
+            inv_m2,
+            p["fn"],
+            (p["rb"] * 0.25 * _INV_PI) * alpha2,
+            alpha2,
+            p["fb"],
+        ]
     else:
         kind = LOMMEL_SEELIGER
         row = [p["w"] * (0.25 * _INV_PI), p["c"], p["a"], p["d"], p["k"]]
-    return kind, row + [0.0] * (6 - len(row))
+    return kind, row + [0.0] * (8 - len(row))
 
 
 class FusedFlux:
@@ -129,7 +141,7 @@ class FusedFlux:
         self.padding = layout.padding
         self.facets = np.ascontiguousarray(table[:, layout.source])
         self.facets[3, layout.padding] = 0.0
-        self.cones = layout.cones
+        self.cones = np.ascontiguousarray(layout.cones, dtype=self.dtype)
         self._blocks = [
             (ROW_KERNELS[kind], int(first), int(last), np.asarray(row, dtype=np.float64))
             for (kind, _, _, row), (first, last) in zip(blocks, layout.block_tiles, strict=True)

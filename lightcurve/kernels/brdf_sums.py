@@ -15,7 +15,10 @@ where an algebraic identity removes a division (tested against :mod:`brdf` and
   min(1, NL/ε) min(1, NV/ε)`` for the lit and seen facets;
 * Ashikhmin–Shirley (Ashikhmin & Shirley 2000, "An anisotropic Phong BRDF model"), isotropic
   or with the facet tangent frame; ``NL NV/max(NL, NV, ε) = min(NL, NV) min(1, max(NL, NV)/ε)``;
-* Lommel–Seeliger + Lambert with the DAMIT phase function (Kaasalainen & Torppa 2001).
+* Lommel–Seeliger + Lambert with the DAMIT phase function (Kaasalainen & Torppa 2001);
+* two lobes (:mod:`brdf.two_lobe`): Cook–Torrance's terms for the narrow Beckmann lobe
+  plus a broad Trowbridge–Reitz lobe (Trowbridge & Reitz 1975), which has no ``exp`` and is
+  summed with the diffuse term.
 
 Every kernel has the signature ``kernel(light, view, facets, cones, first, last, p, shadow,
 out, start, stop)`` and adds the block's sum to ``out[r]`` for the rows ``start ≤ r < stop``:
@@ -28,15 +31,21 @@ cone of each tile, ``first``/``last`` the block's tiles, ``p`` its float64 param
 ``None`` (a separate compilation: no multiplication by one), ``out`` float64. Arithmetic is
 in the dtype of ``facets``.
 
-Lambert and Lommel–Seeliger loop over every facet: they cost about as much per facet as the
-tile test would. The BRDFs with specular lobes skip the tiles with no facet both lit and
-seen (:mod:`lightcurve.kernels.tiles`; about 35 % of 1280 facets and 28 % of 20 480 are
-evaluated at random geometry on a convex body) and evaluate a row in three loops: over the
-runs of visible tiles, everything but the lobe (the diffuse sum, and per facet the lobe's
-weight and base), then ``base ← e log₂(base)``, then ``Σ weight · 2^base``. Short loops keep
-more independent facets in flight on an out-of-order core than one long chain of dependent
-operations per facet (measured 1.3–1.5× faster). Each kernel is compiled (and cached on disk)
-when a shape first uses its BRDF.
+Lambert loops over every facet: the tile test and its runs cost about as much as the part
+of Lambert's loop they would skip. The other kernels skip the tiles with no facet both lit
+and seen (:mod:`lightcurve.kernels.tiles`; about 35 % of 1280 facets and 28 % of 20 480 are
+evaluated at random geometry on a convex body): two dot products per tile against its
+cone, in the compute dtype over contiguous cone arrays so that the test runs on vectors,
+then the runs of visible tiles (together about 0.6 of a Lambert row on 1280 facets; 1.6
+with the float64 cones indexed per tile).
+Lommel–Seeliger sums each run in one loop. The specular kernels evaluate a row in three
+loops: over the runs, everything but the lobe (the diffuse sum, and
+per facet the lobe's weight and base), then ``base ← e log₂(base)``, then
+``Σ weight · 2^power``. With 16 vector registers and numba's large code model (every
+constant reloaded by two instructions when registers run out), one loop holding the whole
+formula runs 1.5× slower per facet than the three (measured), and the per-tile form (eight
+facets in a fixed-length inner loop) is unrolled by LLVM into scalar code. Each kernel is
+compiled (and cached on disk) when a shape first uses its BRDF.
 """
 
 from __future__ import annotations
@@ -58,9 +67,10 @@ __all__ = [
     "LOMMEL_SEELIGER",
     "PHONG",
     "ROW_KERNELS",
+    "TWO_LOBE",
 ]
 
-LAMBERT, PHONG, COOK_TORRANCE, ASHIKHMIN_SHIRLEY, ANISOTROPIC, LOMMEL_SEELIGER = range(6)
+LAMBERT, PHONG, COOK_TORRANCE, ASHIKHMIN_SHIRLEY, ANISOTROPIC, LOMMEL_SEELIGER, TWO_LOBE = range(7)
 #: Kernel code of each BRDF registry name (anisotropic Ashikhmin–Shirley gets its own).
 KINDS = {
     "lambert": LAMBERT,
@@ -68,6 +78,7 @@ KINDS = {
     "cook-torrance": COOK_TORRANCE,
     "ashikhmin-shirley": ASHIKHMIN_SHIRLEY,
     "lommel-seeliger": LOMMEL_SEELIGER,
+    "two-lobe": TWO_LOBE,
 }
 
 # Reassociation lets LLVM vectorise the facet sums; the order of a sum then depends on the
@@ -137,21 +148,21 @@ def _one_minus_fifth_power(x):
 
 
 @njit(**_JIT)
-def _visible_runs(cones, first, last, light, view, r, flags, runs):
-    """Runs of consecutive tiles of ``first:last`` that may hold a facet both lit and seen.
+def _visible_runs(axis_x, axis_y, axis_z, sine, light, view, r, flags, runs):
+    """Runs of consecutive tiles that may hold a facet both lit and seen.
 
-    Fills ``runs[2q], runs[2q + 1]`` with the first and last (exclusive) tile of run ``q``
-    (relative to ``first``) and returns the number of runs.
+    ``axis_*`` and ``sine`` are the cones of a block's tiles in the compute dtype,
+    contiguous, so that the test runs on vectors. Fills ``runs[2q], runs[2q + 1]`` with the
+    first and last (exclusive) tile of run ``q`` and returns the number of runs.
     """
-    lx, ly, lz = light[r, 0], light[r, 1], light[r, 2]
-    vx, vy, vz = view[r, 0], view[r, 1], view[r, 2]
-    count = last - first
+    t = sine.dtype.type
+    lx, ly, lz = t(light[r, 0]), t(light[r, 1]), t(light[r, 2])
+    vx, vy, vz = t(view[r, 0]), t(view[r, 1]), t(view[r, 2])
+    count = len(sine)
     for k in range(count):
-        tile = first + k
-        al = cones[0, tile] * lx + cones[1, tile] * ly + cones[2, tile] * lz
-        av = cones[0, tile] * vx + cones[1, tile] * vy + cones[2, tile] * vz
-        limit = -cones[3, tile]
-        flags[k] = np.uint32(1) if (al >= limit and av >= limit) else np.uint32(0)
+        al = axis_x[k] * lx + axis_y[k] * ly + axis_z[k] * lz
+        av = axis_x[k] * vx + axis_y[k] * vy + axis_z[k] * vz
+        flags[k] = np.uint32((al >= -sine[k]) & (av >= -sine[k]))
     edges = np.uint64(0)
     previous = np.uint32(0)
     for k in range(count):  # an edge wherever the flag changes: run starts and stops
@@ -210,11 +221,13 @@ def _phong_facet(facets, i, c):
 
 
 @njit(**_FORMULA)
-def _cook_torrance_facet(facets, i, c):
+def _microfacet_parts(facets, i, c):
+    """Cosines, ``NH``, ``1/NH²``, the V-cavity ``G`` and ``NL NV/(max(low, ε) max(high, ε))``
+    of a microfacet facet (unmasked)."""
     lx, ly, lz, vx, vy, vz = c[0], c[1], c[2], c[3], c[4], c[5]
-    inv_length, diffuse, specular, power_scale, two_over_vh = c[6], c[7], c[8], c[9], c[10]
+    inv_length, two_over_vh = c[6], c[10]
     t = type(lx)
-    zero, one, floor, inv_floor = t(0.0), t(1.0), t(_COSINE_FLOOR), t(_INV_COSINE_FLOOR)
+    one, floor, inv_floor = t(1.0), t(_COSINE_FLOOR), t(_INV_COSINE_FLOOR)
     nl, nv = _cosines(facets, i, lx, ly, lz, vx, vy, vz)
     nh = (nl + nv) * inv_length
     nh = floor if nh < floor else (one if nh > one else nh)
@@ -226,6 +239,14 @@ def _cook_torrance_facet(facets, i, c):
     ratio_l = nl * inv_floor
     ratio_v = nv * inv_floor
     ratio = (one if ratio_l > one else ratio_l) * (one if ratio_v > one else ratio_v)
+    return nl, nv, nh, inv_nh2, masking, ratio
+
+
+@njit(**_FORMULA)
+def _cook_torrance_facet(facets, i, c):
+    diffuse, specular, power_scale = c[7], c[8], c[9]
+    zero, one = type(c[0])(0.0), type(c[0])(1.0)
+    nl, nv, _, inv_nh2, masking, ratio = _microfacet_parts(facets, i, c)
     lit = nl > zero and nv > zero
     area = facets[3, i]
     weight = area * specular * masking * ratio * (inv_nh2 * inv_nh2)
@@ -235,6 +256,23 @@ def _cook_torrance_facet(facets, i, c):
         (one - inv_nh2) * power_scale,
         zero,
     )
+
+
+@njit(**_FORMULA)
+def _two_lobe_facet(facets, i, c):
+    """Cook–Torrance's terms with the Beckmann (narrow) lobe, plus the Trowbridge–Reitz
+    (broad) lobe, a rational function of ``NH``, in the diffuse term."""
+    diffuse, specular, power_scale, broad, alpha2 = c[7], c[8], c[9], c[11], c[12]
+    zero, one = type(c[0])(0.0), type(c[0])(1.0)
+    nl, nv, nh, inv_nh2, masking, ratio = _microfacet_parts(facets, i, c)
+    lit = nl > zero and nv > zero
+    area = facets[3, i]
+    shadowing = masking * ratio
+    nh2 = nh * nh
+    denominator = (one - nh2) + alpha2 * nh2
+    weight = area * specular * shadowing * (inv_nh2 * inv_nh2)
+    flat = area * (diffuse * nl * nv + broad * shadowing / (denominator * denominator))
+    return flat if lit else zero, weight if lit else zero, (one - inv_nh2) * power_scale, zero
 
 
 @njit(**_FORMULA)
@@ -299,11 +337,13 @@ def _row_constants(kind, p, light, view, r, t):
             zero, zero, zero,
         )  # fmt: skip
     inv_length, vh, q = _half_vector_row(lv)
-    if kind == COOK_TORRANCE:  # 1/|L+V|, rd/π, rs F/(4π m²), log₂e/m², 2/VH
+    if kind in (COOK_TORRANCE, TWO_LOBE):
+        # 1/|L+V|, rd/π, rs F/(4π m²), log₂e/m², 2/VH; two lobes: rb α² F/4π, α²
         specular = p[1] * _schlick(p[3], q)
+        broad = p[4] * _schlick(p[6], q) if kind == TWO_LOBE else 0.0
         return (
             lx, ly, lz, vx, vy, vz, t(inv_length), t(p[0]), t(specular), t(p[2] * _LOG2_E),
-            t(2.0 / vh), zero, zero, zero,
+            t(2.0 / vh), t(broad), t(p[5]), zero,
         )  # fmt: skip
     # Ashikhmin–Shirley: 1/|L+V|, diffuse, √((nu+1)(nv+1))/8π F/VH, nu, nv, H/√max(2+2LV, 1e-30)
     specular = p[1] * _schlick(p[2], q) / vh
@@ -358,26 +398,32 @@ def _lommel_seeliger_term(nx, ny, nz, area, lx, ly, lz, vx, vy, vz, lambert_weig
 @njit(**_JIT)
 def lommel_seeliger_rows(light, view, facets, cones, first, last, p, shadow, out, start, stop):
     t = facets.dtype.type
-    lo, hi = first * TILE, last * TILE
-    nx, ny, nz, area = facets[0, lo:hi], facets[1, lo:hi], facets[2, lo:hi], facets[3, lo:hi]
+    nx, ny, nz, area = facets[0], facets[1], facets[2], facets[3]
     weight = t(p[1])
+    flags = np.empty(last - first, dtype=np.uint32)
+    runs = np.empty(last - first + 2, dtype=np.uint32)
+    offset = np.uint64(first) * _TILE
+    axis_x, axis_y, axis_z = cones[0, first:last], cones[1, first:last], cones[2, first:last]
+    sine = cones[3, first:last]
     for r in range(start, stop):
         lx, ly, lz, vx, vy, vz, lv = _directions(light, view, r, t)
         # The DAMIT phase function, once per row: f = max(0, a exp(−α/d) + k α + 1).
         alpha = math.acos(min(max(lv, -1.0), 1.0))
         phase = p[2] * math.exp(-alpha / p[3]) + p[4] * alpha + 1.0
         total = t(0.0)
-        if shadow is None:
-            for i in range(hi - lo):
-                total += _lommel_seeliger_term(
-                    nx[i], ny[i], nz[i], area[i], lx, ly, lz, vx, vy, vz, weight
-                )
-        else:
-            factor = shadow[r, lo:hi]
-            for i in range(hi - lo):
-                total += factor[i] * _lommel_seeliger_term(
-                    nx[i], ny[i], nz[i], area[i], lx, ly, lz, vx, vy, vz, weight
-                )
+        for q in range(_visible_runs(axis_x, axis_y, axis_z, sine, light, view, r, flags, runs)):
+            lo = offset + np.uint64(runs[_TWO * q]) * _TILE
+            hi = offset + np.uint64(runs[_TWO * q + np.uint64(1)]) * _TILE
+            if shadow is None:
+                for i in range(lo, hi):
+                    total += _lommel_seeliger_term(
+                        nx[i], ny[i], nz[i], area[i], lx, ly, lz, vx, vy, vz, weight
+                    )
+            else:
+                for i in range(lo, hi):
+                    total += shadow[r, i] * _lommel_seeliger_term(
+                        nx[i], ny[i], nz[i], area[i], lx, ly, lz, vx, vy, vz, weight
+                    )
         out[r] += p[0] * max(phase, 0.0) * total
 
 
@@ -393,11 +439,13 @@ def _specular_rows(kind, light, view, facets, cones, first, last, p, shadow, out
     base = np.empty(tiles * TILE, dtype=t)
     exponents = np.empty(tiles * TILE if kind == ANISOTROPIC else 0, dtype=t)
     offset = np.uint64(first) * _TILE
+    axis_x, axis_y, axis_z = cones[0, first:last], cones[1, first:last], cones[2, first:last]
+    sine = cones[3, first:last]
     for r in range(start, stop):
         c = _row_constants(kind, p, light, view, r, t)
         diffuse = zero
         count = np.uint64(0)
-        for q in range(_visible_runs(cones, first, last, light, view, r, flags, runs)):
+        for q in range(_visible_runs(axis_x, axis_y, axis_z, sine, light, view, r, flags, runs)):
             lo = offset + np.uint64(runs[_TWO * q]) * _TILE
             size = np.uint64(runs[_TWO * q + np.uint64(1)]) * _TILE - (lo - offset)
             for j in range(size):
@@ -406,6 +454,8 @@ def _specular_rows(kind, light, view, facets, cones, first, last, p, shadow, out
                     d, w, b, e = _phong_facet(facets, i, c)
                 elif kind == COOK_TORRANCE:
                     d, w, b, e = _cook_torrance_facet(facets, i, c)
+                elif kind == TWO_LOBE:
+                    d, w, b, e = _two_lobe_facet(facets, i, c)
                 elif kind == ASHIKHMIN_SHIRLEY:
                     d, w, b, e = _ashikhmin_shirley_facet(facets, i, c)
                 else:
@@ -457,6 +507,11 @@ def ashikhmin_shirley_anisotropic_rows(
     )
 
 
+@njit(**_JIT)
+def two_lobe_rows(light, view, facets, cones, first, last, p, shadow, out, start, stop):
+    _specular_rows(TWO_LOBE, light, view, facets, cones, first, last, p, shadow, out, start, stop)
+
+
 #: Kernel of each BRDF code (signature in the module docstring).
 ROW_KERNELS = {
     LAMBERT: lambert_rows,
@@ -465,4 +520,5 @@ ROW_KERNELS = {
     ASHIKHMIN_SHIRLEY: ashikhmin_shirley_rows,
     ANISOTROPIC: ashikhmin_shirley_anisotropic_rows,
     LOMMEL_SEELIGER: lommel_seeliger_rows,
+    TWO_LOBE: two_lobe_rows,
 }

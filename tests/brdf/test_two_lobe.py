@@ -26,10 +26,14 @@ def test_hand_computed_values(direction):
 
 def test_one_lobe_and_lambert_limits(random_geometry):
     normal, light, view, _ = random_geometry(np.random.default_rng(21), 3000)
-    narrow_only = brdf.two_lobe(normal, light, view, 0.2, 0.0, 0.3, 1.0, 0.7, 0.1, 0.5)
+    narrow_only = brdf.two_lobe(
+        normal, light, view, rd=0.2, rb=0.0, ab=0.3, fb=1.0, rn=0.7, mn=0.1, fn=0.5
+    )
     cook_torrance = brdf.cook_torrance(normal, light, view, rd=0.2, rs=0.7, m=0.1, f0=0.5)
     np.testing.assert_allclose(narrow_only, cook_torrance, rtol=1e-12, atol=1e-300)
-    no_lobes = brdf.two_lobe(normal, light, view, 0.6, 0.0, 0.3, 1.0, 0.0, 0.1, 0.5)
+    no_lobes = brdf.two_lobe(
+        normal, light, view, rd=0.6, rb=0.0, ab=0.3, fb=1.0, rn=0.0, mn=0.1, fn=0.5
+    )
     np.testing.assert_allclose(no_lobes, brdf.lambert(normal, light, view, 0.6), rtol=1e-15)
 
 

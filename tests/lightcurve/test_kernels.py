@@ -29,6 +29,10 @@ MATERIALS = {
     "ashikhmin-shirley": ("ashikhmin-shirley", {"rd": 0.3, "rs": 0.4, "nu": 100.0, "nv": 100.0}),
     "anisotropic": ("ashikhmin-shirley", {"rd": 0.3, "rs": 0.4, "nu": 10.0, "nv": 1000.0}),
     "lommel-seeliger": ("lommel-seeliger", {"w": 0.2, "c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5}),
+    "two-lobe": (
+        "two-lobe",
+        {"rd": 0.2, "rb": 0.3, "ab": 0.3, "fb": 0.9, "rn": 0.3, "mn": 0.1, "fn": 0.04},
+    ),
 }
 
 
@@ -202,7 +206,7 @@ def _several_materials(dtype, seed=18):
     """A FusedFlux of random facets in one block per kernel (every BRDF, anisotropic too)."""
     rng = np.random.default_rng(seed)
     names = ["lambert", "phong", "cook-torrance", "ashikhmin-shirley", "anisotropic"]
-    names.append("lommel-seeliger")
+    names += ["lommel-seeliger", "two-lobe"]
     per_block = 101  # not a multiple of the tile size: padding slots
     normals = rng.normal(size=(per_block * len(names), 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
