@@ -84,39 +84,38 @@ def identify_attitude_mode(
     hypotheses = []
     for s in range(model.n_shapes):
         starts = tumbling_starts.get(s, [])
+        shared = {"symmetry_order": symmetry_orders[s], "consistency_level": consistency_level}
         tumbler = (
             tumbling(
                 model,
                 problem,
                 s,
                 starts=starts,
-                symmetry_order=symmetry_orders[s],
                 omega_max=omega_max,
-                consistency_level=consistency_level,
                 min_epochs=min_epochs,
                 max_rotation=max_rotation,
+                **shared,
             )
             if starts
             else None
         )
         extra = [q for q, _, t in starts if t == 0.0]
-        for label in labels:
-            hypotheses.append(
-                stabilised(
-                    model,
-                    s,
-                    label,
-                    position=position,
-                    velocity=velocity,
-                    symmetry_order=symmetry_orders[s],
-                    offset_sigma=sigma,
-                    consistency_level=consistency_level,
-                    search_candidates=search_candidates,
-                    rng=rng,
-                    extra_starts=extra,
-                    weak_sigma=math.radians(weak_sigma_deg),
-                )
+        hypotheses.extend(
+            stabilised(
+                model,
+                s,
+                label,
+                position=position,
+                velocity=velocity,
+                offset_sigma=sigma,
+                search_candidates=search_candidates,
+                rng=rng,
+                extra_starts=extra,
+                weak_sigma=math.radians(weak_sigma_deg),
+                **shared,
             )
+            for label in labels
+        )
         if tumbler is not None:
             hypotheses.append(tumbler)
     probabilities = mode_probabilities(hypotheses, labels, model.n_shapes)
