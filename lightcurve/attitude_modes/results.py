@@ -15,10 +15,9 @@ TUMBLING = "tumbling"
 class WeakAxis:
     """A direction of a fitted offset that the light curve pins down poorly.
 
-    The offset is ``δ = δ̂ + t v`` along the axis: ``u`` the unit eigenvector of the
-    posterior covariance ``C`` (small-angle rotation axis, body axes of the profile frame),
-    ``v = C u / (uᵀ C u)`` the line along which the other components follow ``t`` at their
-    conditional optimum (the profile line of a quadratic posterior).
+    The offset is ``δ = δ̂ + t u + (the other two components refitted)`` along the axis:
+    ``u`` a unit eigenvector of the posterior covariance ``C`` (small-angle rotation axis,
+    body axes of the profile frame); see :mod:`lightcurve.attitude_modes.weak_axes`.
 
     Attributes
     ----------
@@ -27,11 +26,11 @@ class WeakAxis:
     sigma_deg : float
         Laplace 1σ along ``u`` (deg).
     interval_deg : (2,) numpy.ndarray
-        ``[t_lo, t_hi]`` (deg, relative to the fitted offset): the stretch of the profile
-        line around the best point where ``−2 ln`` posterior stays within
-        ``χ²₁(0.95) = 3.84`` of its minimum (the 95 % profile-likelihood interval, Wilks'
-        theorem; not symmetric, and wider than ``±2σ`` where the ``χ²`` valley is
-        flat-bottomed), clipped to ``±3 σ_off``.
+        ``[t_lo, t_hi]`` (deg, relative to the fitted offset): the stretch around the fit
+        where the profile of ``−2 ln`` posterior stays within ``χ²₁(0.95) = 3.84`` of the
+        fit's (the 95 % profile-likelihood interval, Wilks' theorem; not symmetric, and
+        wider than ``±2σ`` where the ``χ²`` valley is flat-bottomed), walked in 0.25° steps
+        and clipped to ``±3 σ_off``.
     """
 
     axis: np.ndarray
