@@ -34,10 +34,11 @@ the distinct valleys of a coarse scan of the prior's range, then shells around t
 optimum at fractions of the scan's spacing (glints leave side valleys finer than any
 affordable scan; :mod:`lightcurve.attitude_modes.offsets`).
 
-A direction of a fitted offset whose Laplace 1σ exceeds ``weak_sigma_deg`` (the turn about
-the Sun line of a Sun-pointing body whose lit face is perpendicular to it, say) is reported
-as a weak axis with its 95 % profile-likelihood interval (:class:`WeakAxis`), so the offset
-is a point across such axes and an interval along them.
+A principal direction of a fitted offset whose Laplace 1σ, or whose 95 % profile-likelihood
+interval's half-width over 1.96, exceeds ``weak_sigma_deg`` (the turn about the Sun line of
+a Sun-pointing body whose lit face is perpendicular to it, say) is reported as a weak axis
+with that interval (:class:`WeakAxis`), so the offset is a point across such axes and an
+interval along them.
 
 A stabilised hypothesis must also pass a consistency test: ``χ²`` at most the
 ``consistency_level`` quantile of ``χ²`` with ``n − k`` degrees of freedom. One that fails
