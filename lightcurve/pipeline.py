@@ -95,6 +95,7 @@ def _invert_arguments(
     omega_max_rad_s: float | None,
     particles: int | None,
     init: str,
+    mode_weak_sigma_deg: float | None = None,
 ) -> dict[str, Any]:
     """The keyword arguments of :func:`lightcurve.inversion.invert` from the job's options
     (those left None keep the library's defaults)."""
@@ -106,6 +107,7 @@ def _invert_arguments(
         "omega_max": omega_max_rad_s,
         "particles": particles,
         "init": init,
+        "mode_weak_sigma_deg": mode_weak_sigma_deg,
     }
     return {k: v for k, v in arguments.items() if v is not None}
 
@@ -131,6 +133,7 @@ def check_request(options: dict[str, Any]) -> None:
             **{key: options.get(key) for key in keys},
             particles=options.get("particles"),
             init=options.get("init", "search"),
+            mode_weak_sigma_deg=options.get("mode_weak_sigma_deg"),
         ),
     )
 
@@ -152,6 +155,7 @@ def invert_file(
     init: str = "search",
     drop_bad_rows: bool = False,
     modes: bool = False,
+    mode_weak_sigma_deg: float | None = None,
     progress: Callable[[float, str], None] | None = None,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
@@ -199,6 +203,7 @@ def invert_file(
         omega_max_rad_s=omega_max_rad_s,
         particles=particles,
         init=init,
+        mode_weak_sigma_deg=mode_weak_sigma_deg,
     )
     result = invert(
         observations,

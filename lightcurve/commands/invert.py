@@ -108,6 +108,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "attitude_mode, attitude_mode_probability, attitude_offsets_deg",
     )
     parser.add_argument(
+        "--mode-weak-sigma",
+        type=float,
+        metavar="DEG",
+        help="with --modes: a direction of a fitted offset whose 1-sigma exceeds DEG is "
+        "reported as a weak axis with its 95%% interval, deg (default: 1)",
+    )
+    parser.add_argument(
         "--particles", type=int, metavar="N", help="particle count (pf) (default: 2000)"
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed")
@@ -148,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         "init": args.init,
         "drop_bad_rows": args.drop_bad_rows,
         "modes": args.modes,
+        "mode_weak_sigma_deg": args.mode_weak_sigma,
     }
     # The library's own checks of the request, at start rather than once per input.
     check_request(options)

@@ -167,9 +167,10 @@ def _attitude_modes(ctx: Context, result: InversionResult) -> None:
         omega_max=ctx.omega_max,
         offset_sigma_deg=ctx.options.mode_offset_sigma_deg,
         consistency_level=ctx.options.mode_consistency_level,
+        weak_sigma_deg=ctx.options.mode_weak_sigma_deg,
         position=obs.object_positions if obs.has_object_position else None,
         velocity=obs.object_velocities if obs.has_object_velocity else None,
-        max_epochs=ctx.options.min_epochs,
+        min_epochs=ctx.options.min_epochs,
         max_rotation=math.radians(ctx.options.max_sample_rotation_deg),
         seed=ctx.seed,
     )

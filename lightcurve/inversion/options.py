@@ -158,6 +158,10 @@ class InversionOptions:
     mode_consistency_level : float
         ``modes=True``: quantile of ``χ²`` (``n − k`` degrees of freedom) above which a
         stabilised hypothesis does not fit and is discarded.
+    mode_weak_sigma_deg : float
+        ``modes=True``: a direction of a fitted offset whose Laplace 1σ exceeds this (deg)
+        is reported as a weak axis with its 95 % profile-likelihood interval, and its line
+        is scanned for a lower posterior.
     """
 
     init: str = "search"
@@ -203,10 +207,15 @@ class InversionOptions:
     compile: bool = False
     mode_offset_sigma_deg: float = 10.0
     mode_consistency_level: float = 0.999
+    mode_weak_sigma_deg: float = 1.0
 
     def __post_init__(self) -> None:
         if not (self.mode_offset_sigma_deg > 0 and 0 < self.mode_consistency_level < 1):
             raise ValueError("mode_offset_sigma_deg must be > 0, mode_consistency_level in (0, 1)")
+        if not (math.isfinite(self.mode_weak_sigma_deg) and self.mode_weak_sigma_deg > 0):
+            raise ValueError(
+                f"mode_weak_sigma_deg must be positive and finite, got {self.mode_weak_sigma_deg}"
+            )
         if self.init not in ("search", "none"):
             raise ValueError(f"init must be 'search' or 'none', got {self.init!r}")
         if self.likelihood not in ("gaussian", "student"):
@@ -272,7 +281,7 @@ _PARTICLE = frozenset(
     }
 )
 #: Options read only with ``modes=True`` (the attitude-mode test).
-MODE_OPTIONS = frozenset({"mode_offset_sigma_deg", "mode_consistency_level"})
+MODE_OPTIONS = frozenset({"mode_offset_sigma_deg", "mode_consistency_level", "mode_weak_sigma_deg"})
 #: Method → the options it reads (with ``modes=True``, :data:`MODE_OPTIONS` too).
 METHOD_OPTIONS: dict[str, frozenset[str]] = {
     "ukf": _COMMON | _FILTER,

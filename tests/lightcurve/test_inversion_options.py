@@ -39,7 +39,7 @@ def test_an_option_the_method_ignores_is_an_error(method, option, value):
 
 def test_every_option_is_read_by_some_method_and_accepted_there():
     fields = {f.name for f in InversionOptions.__dataclass_fields__.values()}
-    modes_only = {"mode_offset_sigma_deg", "mode_consistency_level"}
+    modes_only = {"mode_offset_sigma_deg", "mode_consistency_level", "mode_weak_sigma_deg"}
     assert set().union(*METHOD_OPTIONS.values()) | modes_only == fields
     assert validate_request("pf", moves=2, likelihood="student").moves == 2
     assert validate_request("mmae", probability_floor=0.01, estimate_offset=True).estimate_offset
