@@ -155,12 +155,14 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _run_timed(command: list[str], env=None, stdin=None) -> tuple[float, float]:
+def _run_timed(command: list[str], env=None, stdin=None, cwd=ROOT) -> tuple[float, float]:
     """Wall and CPU seconds of one run of a process (its output discarded)."""
     cpu = _children_cpu()
     began = time.perf_counter()
     with open(stdin) if stdin else open(os.devnull) as source:
-        subprocess.run(command, env=env, stdin=source, stdout=subprocess.DEVNULL, check=True)
+        subprocess.run(
+            command, env=env, cwd=cwd, stdin=source, stdout=subprocess.DEVNULL, check=True
+        )
     return time.perf_counter() - began, _children_cpu() - cpu
 
 
@@ -389,23 +391,24 @@ def reference(
     # Interleaved: each round runs every program once. CPU seconds (user + system) are
     # reported with the wall times: on a shared machine they depend far less on the load.
     programs = {
-        "command": (command, None, env),
-        "command_with_plots": ([*command, "--plots"], None, env),
-        "library_process": ([sys.executable, "-c", library], None, env),
+        "command": (command, None, env, ROOT),
+        "command_with_plots": ([*command, "--plots"], None, env, ROOT),
+        "library_process": ([sys.executable, "-c", library], None, env, ROOT),
     }
     if baseline is not None:
         path = os.pathsep.join(filter(None, [str(baseline.resolve()), env.get("PYTHONPATH")]))
-        programs["command_baseline"] = (command, None, {**env, "PYTHONPATH": path})
+        # Run from the baseline tree: ``python -m`` puts the working folder first on sys.path.
+        programs["command_baseline"] = (command, None, {**env, "PYTHONPATH": path}, baseline)
     if build is not None:
         convexinv = [str(build / "convexinv" / "convexinv"), "-o", str(out_dir / "areas")]
         convexinv += ["-p", str(out_dir / "par"), str(build / "input_convexinv")]
-        convexinv = ([*convexinv, str(out_dir / "lcs")], str(ARIADNE), env)
+        convexinv = ([*convexinv, str(out_dir / "lcs")], str(ARIADNE), env, ROOT)
         programs = {"convexinv": convexinv, **programs}
     rounds = []
     for _ in range(repeat):
         row = {}
-        for name, (argv, stdin, environment) in programs.items():
-            wall, cpu = _run_timed(argv, env=environment, stdin=stdin)
+        for name, (argv, stdin, environment, cwd) in programs.items():
+            wall, cpu = _run_timed(argv, env=environment, stdin=stdin, cwd=cwd)
             row[f"{name}_seconds"], row[f"{name}_cpu_seconds"] = wall, cpu
         rounds.append(row)
     for key in rounds[0]:

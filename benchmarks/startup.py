@@ -7,7 +7,7 @@ round running every case once, alternated with the same cases of a baseline sour
 first on ``PYTHONPATH``, so the same interpreter and packages run the older code). Prints
 JSON with the figures, the ratios to the baseline and the machine.
 
-    python -m benchmarks.startup [--baseline DIR] [--repeat 5] [--commands simulate,convex]
+    python -m benchmarks.startup [--baseline DIR] [--repeat 5] [--commands ,simulate,convex]
 """
 
 from __future__ import annotations
@@ -31,11 +31,11 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _run(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
+def _run(argv: list[str], env: dict[str, str], cwd: Path) -> tuple[float, float]:
     """Wall and CPU seconds of one process."""
     cpu = _children_cpu()
     began = time.perf_counter()
-    subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, check=True)
+    subprocess.run(argv, env=env, cwd=cwd, stdout=subprocess.DEVNULL, check=True)
     return time.perf_counter() - began, _children_cpu() - cpu
 
 
@@ -45,12 +45,12 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5, help="rounds (best of)")
     parser.add_argument(
         "--commands",
-        default=",".join(c or "-" for c in COMMANDS),
-        help="comma-separated commands whose --help is timed ('-': lightcurve --help alone)",
+        default=",".join(COMMANDS),
+        help="comma-separated commands whose --help is timed (an empty item: lightcurve --help)",
     )
     args = parser.parse_args()
-    commands = [c if c != "-" else "" for c in args.commands.split(",")]
-    trees = {"current": None}
+    commands = [c.strip() for c in args.commands.split(",")]
+    trees = {"current": Path(__file__).resolve().parents[1]}
     if args.baseline is not None:
         trees["baseline"] = args.baseline.resolve()
     rows: dict[str, dict[str, list[tuple[float, float]]]] = {}
@@ -59,12 +59,13 @@ def main() -> None:
             label = f"lightcurve {command} --help".replace("  ", " ")
             for tree, path in trees.items():
                 env = dict(os.environ)
-                if path is not None:
+                if tree == "baseline":
                     env["PYTHONPATH"] = os.pathsep.join(
                         filter(None, [str(path), env.get("PYTHONPATH")])
                     )
                 argv = [sys.executable, "-m", "lightcurve.cli", *([command] if command else [])]
-                rows.setdefault(label, {}).setdefault(tree, []).append(_run([*argv, "--help"], env))
+                run = _run([*argv, "--help"], env, cwd=path)  # python -m: cwd first on sys.path
+                rows.setdefault(label, {}).setdefault(tree, []).append(run)
     out: dict = {"machine": machine_info(), "load_average": os.getloadavg(), "cases": {}}
     for label, by_tree in rows.items():
         case = {}
