@@ -36,7 +36,9 @@ Prints JSON with:
   process, ``lightcurve convex`` as a process (imports, fit, shape, plots), the library fit
   in a fresh process (imports, reading, fit) and in this process; the solution against the
   torch engine's in the same run (same optimiser, the torch model); the command is timed
-  as run by default (no figures) and with ``--plots``. And DAMIT's
+  as run by default (no figures) and with ``--plots``; with ``--baseline DIR`` (a source
+  tree of an earlier commit, put first on ``PYTHONPATH``) that commit's command runs in the
+  same rounds, for a before/after ratio. And DAMIT's
   ``period_scan`` on its example range 5.7615–5.7625 h against ours on the same range. The C
   sources are DAMIT's distribution (``convexinv`` folder with its ``Makefile``): give its
   folder with ``--damit DIR`` or ``DAMIT_CONVEX_DIR``; it is built in a temporary folder
@@ -54,7 +56,7 @@ not available any more; the C references are measured in the same run.
 
     python -m benchmarks.convex [--parts ariadne,profile,itokawa,scan,reference,rejection,simulated]
         (reference_fit: the reference part without the period scans)
-        [--poles 4] [--threads 2] [--repeat 3] [--damit DIR]
+        [--poles 4] [--threads 2] [--repeat 3] [--damit DIR] [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -153,12 +155,14 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _run_timed(command: list[str], env=None, stdin=None) -> tuple[float, float]:
+def _run_timed(command: list[str], env=None, stdin=None, cwd=ROOT) -> tuple[float, float]:
     """Wall and CPU seconds of one run of a process (its output discarded)."""
     cpu = _children_cpu()
     began = time.perf_counter()
     with open(stdin) if stdin else open(os.devnull) as source:
-        subprocess.run(command, env=env, stdin=source, stdout=subprocess.DEVNULL, check=True)
+        subprocess.run(
+            command, env=env, cwd=cwd, stdin=source, stdout=subprocess.DEVNULL, check=True
+        )
     return time.perf_counter() - began, _children_cpu() - cpu
 
 
@@ -332,10 +336,16 @@ def _damit_build(source: Path | None) -> Path | None:
 
 
 def reference(
-    data: Photometry, damit: Path | None, repeat: int, threads: int, scan: bool = True
+    data: Photometry,
+    damit: Path | None,
+    repeat: int,
+    threads: int,
+    scan: bool = True,
+    baseline: Path | None = None,
 ) -> dict:
     """Our fit and (with ``scan``) scan against DAMIT's C programs, side by side (see the
-    module docstring)."""
+    module docstring); with ``baseline`` (a source tree of an earlier commit) its command
+    too, in the same rounds."""
     build = _damit_build(damit)
     out: dict = {"load_average": os.getloadavg()}
     start = SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(data.mjd.min()))
@@ -381,19 +391,24 @@ def reference(
     # Interleaved: each round runs every program once. CPU seconds (user + system) are
     # reported with the wall times: on a shared machine they depend far less on the load.
     programs = {
-        "command": (command, None),
-        "command_with_plots": ([*command, "--plots"], None),
-        "library_process": ([sys.executable, "-c", library], None),
+        "command": (command, None, env, ROOT),
+        "command_with_plots": ([*command, "--plots"], None, env, ROOT),
+        "library_process": ([sys.executable, "-c", library], None, env, ROOT),
     }
+    if baseline is not None:
+        path = os.pathsep.join(filter(None, [str(baseline.resolve()), env.get("PYTHONPATH")]))
+        # Run from the baseline tree: ``python -m`` puts the working folder first on sys.path.
+        programs["command_baseline"] = (command, None, {**env, "PYTHONPATH": path}, baseline)
     if build is not None:
         convexinv = [str(build / "convexinv" / "convexinv"), "-o", str(out_dir / "areas")]
         convexinv += ["-p", str(out_dir / "par"), str(build / "input_convexinv")]
-        programs = {"convexinv": ([*convexinv, str(out_dir / "lcs")], str(ARIADNE)), **programs}
+        convexinv = ([*convexinv, str(out_dir / "lcs")], str(ARIADNE), env, ROOT)
+        programs = {"convexinv": convexinv, **programs}
     rounds = []
     for _ in range(repeat):
         row = {}
-        for name, (argv, stdin) in programs.items():
-            wall, cpu = _run_timed(argv, env=env, stdin=stdin)
+        for name, (argv, stdin, environment, cwd) in programs.items():
+            wall, cpu = _run_timed(argv, env=environment, stdin=stdin, cwd=cwd)
             row[f"{name}_seconds"], row[f"{name}_cpu_seconds"] = wall, cpu
         rounds.append(row)
     for key in rounds[0]:
@@ -402,8 +417,14 @@ def reference(
     if build is not None:
         for kind in ("seconds", "cpu_seconds"):
             c = timings[f"convexinv_{kind}"]
-            for name in ("library_process", "command", "command_with_plots", "fit_in_process"):
+            names = ["library_process", "command", "command_with_plots", "fit_in_process"]
+            for name in names + (["command_baseline"] if baseline is not None else []):
                 timings[f"ratio_{name}_to_convexinv_{kind}"] = timings[f"{name}_{kind}"] / c
+    if baseline is not None:
+        for kind in ("seconds", "cpu_seconds"):
+            timings[f"ratio_command_to_command_baseline_{kind}"] = (
+                timings[f"command_{kind}"] / timings[f"command_baseline_{kind}"]
+            )
     timings["baseline_command_seconds"] = BASELINE_SECONDS["ariadne_fit_command"]
     timings["ratio_command_to_baseline"] = (
         timings["command_seconds"] / BASELINE_SECONDS["ariadne_fit_command"]
@@ -574,6 +595,11 @@ def main() -> None:
         help="DAMIT's convexinv distribution (folder with convexinv/Makefile)",
     )
     parser.add_argument(
+        "--baseline",
+        type=Path,
+        help="reference part: also time the command of this source tree (an earlier commit)",
+    )
+    parser.add_argument(
         "--every", type=float, default=50.0, help="days between simulated nights (simulated)"
     )
     parser.add_argument("--poles", type=int, default=4, help="pole starts of the Ariadne scan")
@@ -614,7 +640,12 @@ def main() -> None:
         out["ariadne_scan"] = ariadne_scan(data, args.poles, args.coefficient, 10)
     if "reference" in parts or "reference_fit" in parts:
         out["reference"] = reference(
-            data, args.damit, args.repeat, args.threads, scan="reference" in parts
+            data,
+            args.damit,
+            args.repeat,
+            args.threads,
+            scan="reference" in parts,
+            baseline=args.baseline,
         )
     if "rejection" in parts:
         out["rejection"] = rejection_study(data, (5.755, 5.77), args.poles, args.coefficient)

@@ -13,12 +13,14 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from shapes.files import atomic_path, output_folder
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "atomic_path",

@@ -33,7 +33,6 @@ otherwise), so a command beside other CPU-bound processes costs the CPU time it 
 from __future__ import annotations
 
 import argparse
-import ast
 import importlib
 import importlib.util
 import logging
@@ -43,7 +42,6 @@ import re
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NoReturn
 
 from lightcurve import __version__
@@ -69,19 +67,14 @@ def command_specs() -> list[CommandSpec]:
     dependencies such as torch or astropy) is imported.
     """
     from lightcurve import commands
+    from lightcurve.commands._source import module_literals
 
     specs = []
     for info in pkgutil.iter_modules(commands.__path__):
         if info.name.startswith("_"):
             continue
         module = f"lightcurve.commands.{info.name}"
-        origin = importlib.util.find_spec(module).origin
-        constants = {}
-        for node in ast.parse(Path(origin).read_text(encoding="utf-8")).body:
-            if isinstance(node, ast.Assign) and len(node.targets) == 1:
-                target = node.targets[0]
-                if isinstance(target, ast.Name) and target.id in ("NAME", "HELP", "ORDER"):
-                    constants[target.id] = ast.literal_eval(node.value)
+        constants = module_literals(module, ("NAME", "HELP", "ORDER"))
         if "NAME" in constants:
             specs.append(
                 CommandSpec(

@@ -24,8 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from lightcurve.atomic import atomic_path
 from lightcurve.observations import ObservationError, Observations, RowProblem, validate_table
@@ -147,6 +145,9 @@ def read_parquet(
     path: Path, require_magnitudes: bool = True, drop_bad_rows: bool = False
 ) -> Observations:
     """Read the project's Parquet observation format (see :func:`read`)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     try:
         arrow = pq.read_table(path)
     except (pa.ArrowException, OSError) as exc:
@@ -268,6 +269,9 @@ def write(observations: Observations, path: str | os.PathLike[str]) -> None:
                 handle.write(header)
                 table.to_csv(handle, index=False, float_format=None, lineterminator="\n")
         elif fmt == "parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
             arrow = pa.Table.from_pandas(table, preserve_index=False)
             schema_meta = dict(arrow.schema.metadata or {})
             schema_meta[PARQUET_META_KEY] = json.dumps(observations.meta).encode()

@@ -10,22 +10,38 @@ model (body) frame. Main entry points:
   :func:`joint_visible_fraction` for self-shadowing of non-convex models;
 - :func:`validate` and :class:`ShapeError`;
 - :class:`ShapeLibrary` / :func:`get_library` for the folder of named shapes.
+
+The names are loaded on first use (PEP 562 module ``__getattr__``): ``import shapes`` or a
+light submodule such as :mod:`shapes.files` does not import trimesh, scipy.spatial or
+networkx, which cost seconds at the start of a process.
 """
 
-from shapes import primitives
-from shapes.compiled import DEFAULT_ANGLE_TOLERANCE, CompiledFacets
-from shapes.errors import ShapeError
-from shapes.io import load, load_damit, write_obj
-from shapes.library import ShapeLibrary, builtin_library_path, get_library
-from shapes.material import Material
-from shapes.model import FacetModel, inertia_from_components
-from shapes.validation import validate
-from shapes.visibility import (
-    VisibilityTable,
-    build_visibility_table,
-    joint_visible_fraction,
-    visible_fraction,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+#: Public name → the submodule defining it (``primitives`` is the submodule itself).
+_SOURCES = {
+    "DEFAULT_ANGLE_TOLERANCE": "shapes.compiled",
+    "CompiledFacets": "shapes.compiled",
+    "FacetModel": "shapes.model",
+    "Material": "shapes.material",
+    "ShapeError": "shapes.errors",
+    "ShapeLibrary": "shapes.library",
+    "VisibilityTable": "shapes.visibility",
+    "build_visibility_table": "shapes.visibility",
+    "builtin_library_path": "shapes.library",
+    "get_library": "shapes.library",
+    "inertia_from_components": "shapes.model",
+    "joint_visible_fraction": "shapes.visibility",
+    "load": "shapes.io",
+    "load_damit": "shapes.io",
+    "primitives": "shapes.primitives",
+    "validate": "shapes.validation",
+    "visible_fraction": "shapes.visibility",
+    "write_obj": "shapes.io",
+}
 
 __all__ = [
     "DEFAULT_ANGLE_TOLERANCE",
@@ -47,3 +63,35 @@ __all__ = [
     "visible_fraction",
     "write_obj",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import the submodule that defines ``name`` on first access (PEP 562)."""
+    source = _SOURCES.get(name)
+    if source is None:
+        raise AttributeError(f"module 'shapes' has no attribute {name!r}")
+    module = importlib.import_module(source)
+    value = module if name == "primitives" else getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
+    from shapes import primitives
+    from shapes.compiled import DEFAULT_ANGLE_TOLERANCE, CompiledFacets
+    from shapes.errors import ShapeError
+    from shapes.io import load, load_damit, write_obj
+    from shapes.library import ShapeLibrary, builtin_library_path, get_library
+    from shapes.material import Material
+    from shapes.model import FacetModel, inertia_from_components
+    from shapes.validation import validate
+    from shapes.visibility import (
+        VisibilityTable,
+        build_visibility_table,
+        joint_visible_fraction,
+        visible_fraction,
+    )

@@ -22,16 +22,18 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 
 from shapes.errors import ShapeError
 from shapes.files import atomic_write
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import DEFAULT_MAX_FACETS, UNIT_SCALE, check_unit, validate
+
+if TYPE_CHECKING:  # trimesh (about a second to import) is loaded where it is used
+    import trimesh
 
 __all__ = ["EXTENSIONS", "READERS", "load", "load_damit", "read_damit", "read_trimesh", "write_obj"]
 
@@ -106,6 +108,8 @@ def _group_name(key: str, geometry: trimesh.Trimesh, path: Path, keys: list[str]
 
 def read_trimesh(path: str | os.PathLike[str]) -> MeshParts:
     """Read any mesh trimesh loads, one group per OBJ group/object/material or scene node."""
+    import trimesh
+
     path = Path(path)
     try:
         scene = trimesh.load(
@@ -168,6 +172,8 @@ def _weld_if_soup(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     uses = np.bincount(faces.ravel(), minlength=len(vertices))
     if len(faces) < 2 or uses.max() > 1:
         return vertices, faces
+    import trimesh
+
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)

@@ -11,7 +11,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 
 __all__ = [
     "MassProperties",
@@ -49,6 +48,8 @@ def solid_properties(triangles: np.ndarray, density: float = 1.0) -> MassPropert
     density : float
         kg/m³.
     """
+    import trimesh
+
     tri = np.asarray(triangles, float)
     origin = _reference_point(tri)
     props = trimesh.triangles.mass_properties(tri - origin, density=density)

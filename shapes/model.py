@@ -10,10 +10,9 @@ import hashlib
 import json
 from collections.abc import Mapping, Sequence
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
 from shapes import mass, validation
@@ -21,6 +20,9 @@ from shapes.compiled import DEFAULT_ANGLE_TOLERANCE, CompiledFacets, compile_fac
 from shapes.errors import ShapeError
 from shapes.material import Material
 from shapes.protocols import FacetVisibility
+
+if TYPE_CHECKING:  # trimesh (about a second to import) is loaded where it is used
+    import trimesh
 
 __all__ = ["DEFAULT_MATERIAL", "FacetModel", "inertia_from_components"]
 
@@ -232,6 +234,8 @@ class FacetModel:
     @cached_property
     def mesh(self) -> trimesh.Trimesh:
         """The geometry as an unprocessed :class:`trimesh.Trimesh` (same vertex/face order)."""
+        import trimesh
+
         return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
 
     @cached_property

@@ -11,10 +11,12 @@ imports run one way: ``validation``, ``compiled`` → ``protocols``; ``visibilit
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
-import trimesh
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["FacetMesh", "FacetVisibility"]
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import trimesh
 
 from shapes.errors import ShapeError
 from shapes.protocols import FacetMesh
@@ -112,6 +111,8 @@ def _check_winding(model: FacetMesh) -> None:
 
 def _check_inward(model: FacetMesh) -> None:
     """Closed connected parts must enclose positive volume (outward normals)."""
+    import trimesh
+
     n_facets = len(model.faces)
     parts = trimesh.graph.connected_components(
         model.mesh.face_adjacency, nodes=np.arange(n_facets), min_len=1

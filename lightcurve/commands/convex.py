@@ -23,10 +23,6 @@ import dataclasses
 import math
 from pathlib import Path
 
-import pandas as pd
-
-from lightcurve import io
-from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
 from lightcurve.commands._args import add_progress_option, float_vector, show_progress
 
 NAME = "convex"
@@ -134,6 +130,10 @@ def _settings(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from lightcurve import io
+    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
     from lightcurve.convex.scan import SCAN_SETTINGS, refine
     from lightcurve.spin import SpinState

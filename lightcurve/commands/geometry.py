@@ -22,27 +22,13 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from lightcurve import io
 from lightcurve.commands._satellite_args import (
     add_shadow_options,
     add_site,
     add_tle_options,
     warnings_to_stderr,
 )
-from lightcurve.ephemeris import CircularOrbit, orbit_geometry
-from lightcurve.epochs import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
-from lightcurve.observations import (
-    GEOMETRY_COLUMNS,
-    MJD_EPOCH,
-    OBJECT_COLUMNS,
-    OBSERVER_COLUMNS,
-    SUN_COLUMNS,
-    Observations,
-    mjd_to_datetime,
-)
-from lightcurve.sites import get_site
 
 NAME = "geometry"
 HELP = "write a geometry file (circular orbit or TLEs + ground site) for simulate"
@@ -89,6 +75,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _span(args: argparse.Namespace) -> np.ndarray:
     """UTC microseconds since MJD 0 of the epochs of --start/--duration/--cadence."""
+    import pandas as pd
+
+    from lightcurve.observations import MJD_EPOCH
+
     if args.start is None or args.duration is None:
         raise ValueError("give --start and --duration (or --epochs-from with --tle)")
     if not (args.duration > 0 and args.cadence > 0):
@@ -103,6 +93,11 @@ def _span(args: argparse.Namespace) -> np.ndarray:
 
 
 def _circular(args: argparse.Namespace) -> int:
+    from lightcurve import io
+    from lightcurve.ephemeris import CircularOrbit, orbit_geometry
+    from lightcurve.epochs import MICROSECONDS_PER_DAY
+    from lightcurve.sites import get_site
+
     if args.epochs_from:
         raise ValueError("--epochs-from needs --tle")
     mjd = _span(args) / MICROSECONDS_PER_DAY
@@ -125,9 +120,22 @@ def _default(value: float | None, key: str) -> float:
 
 
 def _tle(args: argparse.Namespace) -> int:
-    from lightcurve.observations import validate_table
+    import pandas as pd
+
+    from lightcurve import io
+    from lightcurve.epochs import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
+    from lightcurve.observations import (
+        GEOMETRY_COLUMNS,
+        OBJECT_COLUMNS,
+        OBSERVER_COLUMNS,
+        SUN_COLUMNS,
+        Observations,
+        mjd_to_datetime,
+        validate_table,
+    )
     from lightcurve.satellite_geometry import from_tle
     from lightcurve.shadow_earth import shadow_events
+    from lightcurve.sites import get_site
     from lightcurve.tle import read_tles, select_object
 
     tles = select_object(read_tles(args.tle), args.norad)

@@ -25,12 +25,9 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from lightcurve import io
-from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
 from lightcurve.commands._args import float_vector
-from lightcurve.profiles import STABILISED_PROFILES
+from lightcurve.commands._source import literal
 
 NAME = "glint"
 HELP = "detect glints: epochs, PAB directions, panel normal, glint-spacing period"
@@ -79,7 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--profile",
-        choices=STABILISED_PROFILES,
+        choices=literal("lightcurve.profiles", "STABILISED_PROFILES"),
         help="known attitude profile: report the glints' panel normal in the body frame "
         "(normal_body)",
     )
@@ -109,6 +106,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from lightcurve import io
+    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
     from lightcurve.glint import detect_glints, glint_period, panel_normal
     from lightcurve.glint_profile import body_normals
 

@@ -18,17 +18,13 @@ from __future__ import annotations
 
 import argparse
 
-from lightcurve import io
 from lightcurve.commands._satellite_args import (
     add_shadow_options,
     add_site,
     add_tle_options,
     warnings_to_stderr,
 )
-from lightcurve.epochs import TIME_FORMATS, TIME_SCALES, TimeColumn
-from lightcurve.importing import Topocentric, import_photometry
-from lightcurve.sites import get_site
-from lightcurve.tables import DELIMITERS, read_table
+from lightcurve.commands._source import literal
 
 NAME = "import"
 HELP = "import a photometry table (times, magnitudes, TLEs or topocentric data) as observations"
@@ -43,15 +39,18 @@ def _three(text: str) -> tuple[str, str, str]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    time_formats = literal("lightcurve.epochs", "TIME_FORMATS")
+    time_scales = literal("lightcurve.epochs", "TIME_SCALES")
+    delimiters = literal("lightcurve.tables", "DELIMITERS")
     parser.add_argument("table", metavar="TABLE", help="photometry table (text)")
     parser.add_argument(
         "--time-column", required=True, metavar="C", help="name or 1-based position"
     )
     parser.add_argument(
-        "--time-format", required=True, choices=TIME_FORMATS, help="how the time column is written"
+        "--time-format", required=True, choices=time_formats, help="how the time column is written"
     )
     parser.add_argument(
-        "--time-scale", choices=TIME_SCALES, default="utc", help="time scale of the times"
+        "--time-scale", choices=time_scales, default="utc", help="time scale of the times"
     )
     parser.add_argument("--mag-column", required=True, metavar="C", help="magnitudes, mag")
     errors = parser.add_mutually_exclusive_group(required=True)
@@ -81,7 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_site(parser)
     parser.add_argument(
-        "--delimiter", choices=("auto", *DELIMITERS), default="auto", help="column separator"
+        "--delimiter", choices=("auto", *delimiters), default="auto", help="column separator"
     )
     header = parser.add_mutually_exclusive_group()
     header.add_argument(
@@ -112,6 +111,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcurve import io
+    from lightcurve.epochs import TimeColumn
+    from lightcurve.importing import Topocentric, import_photometry
+    from lightcurve.sites import get_site
+    from lightcurve.tables import read_table
+
     table = read_table(args.table, args.delimiter, args.header, args.decimal)
     tles = None
     topocentric = None

@@ -25,14 +25,12 @@ import sys
 
 import numpy as np
 
-from lightcurve.batch import run_batch
 from lightcurve.commands._args import (
     add_progress_option,
     float_vector,
     show_progress,
     unit_quaternion,
 )
-from lightcurve.pipeline import SUMMARY_KEYS, check_request, invert_file, resolve_shapes
 
 NAME = "invert"
 HELP = "invert observation files for attitude, rates and shape (batch, resumable)"
@@ -135,6 +133,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcurve.batch import run_batch
+    from lightcurve.pipeline import SUMMARY_KEYS, check_request, invert_file, resolve_shapes
+
     names = resolve_shapes(
         args.library, args.shape, args.shapes and args.shapes.split(","), args.all_shapes
     )

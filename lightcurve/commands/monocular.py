@@ -19,17 +19,6 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
-from lightcurve.scenarios import ScenarioError
-from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
-from lightcurve.studies.monocular import (
-    estimates_table,
-    print_summary,
-    run_study,
-    summarize,
-    write_figures,
-)
-
 NAME = "monocular"
 
 
@@ -56,6 +45,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve monocular``."""
+    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
+    from lightcurve.scenarios import ScenarioError
+    from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
+    from lightcurve.studies.monocular import (
+        estimates_table,
+        print_summary,
+        run_study,
+        summarize,
+        write_figures,
+    )
+
     if args.runs < 1:
         raise ScenarioError(f"--runs must be >= 1, got {args.runs}")
     scenario = load_monocular_scenario(args.scenario)

@@ -17,10 +17,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from lightcurve import io
-from lightcurve.atomic import atomic_path, atomic_write_json, atomic_write_table, json_ready
 from lightcurve.commands._args import add_progress_option, float_vector, progress_bar
 
 NAME = "period"
@@ -68,6 +65,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from lightcurve import io
+    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
     from lightcurve.glint import detect_glints, glint_period
     from lightcurve.period import period_search
 
@@ -119,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _plot(result, path: Path) -> None:
     import matplotlib
+
+    from lightcurve.atomic import atomic_path
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -14,11 +14,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lightcurve.atomic import atomic_write_json
-from lightcurve.scenarios import ScenarioError
-from lightcurve.scenarios.landing import load_scenario
-from lightcurve.studies.landing import run_study, summarize
-
 NAME = "plan"
 
 
@@ -38,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve plan``."""
+    from lightcurve.atomic import atomic_write_json
+    from lightcurve.scenarios import ScenarioError
+    from lightcurve.scenarios.landing import load_scenario
+    from lightcurve.studies.landing import run_study, summarize
+
     scenario = load_scenario(args.scenario)
     if args.runs < 1:
         raise ScenarioError(f"--runs must be >= 1, got {args.runs}")

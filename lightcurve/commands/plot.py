@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import argparse
 
-from lightcurve.plots import plot_result
-
 NAME = "plot"
 HELP = "plot an inversion result folder as PNG figures"
 ORDER = 35
@@ -30,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcurve.plots import plot_result
+
     for path in plot_result(args.result, args.out):
         print(path)
     return 0

@@ -11,9 +11,7 @@ import argparse
 import sys
 
 import numpy as np
-import pandas as pd
 
-from filters.attitude import propagate, quaternion_canonical, validate_inertia
 from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
 
 NAME = "propagate"
@@ -53,6 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from filters.attitude import propagate, quaternion_canonical, validate_inertia
+
     inertia = validate_inertia(args.inertia)
     if not (args.duration > 0 and args.step > 0):
         raise ValueError("--duration and --step must be positive seconds")

@@ -17,14 +17,6 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-
-from lightcurve.atomic import atomic_write_json, atomic_write_table
-from lightcurve.scenarios.relnav import (
-    _AXES,
-    load_relnav_scenario,
-)
-from lightcurve.studies.relnav import simulate_approach
 
 NAME = "relnav"
 
@@ -60,6 +52,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve relnav``."""
+    import pandas as pd
+
+    from lightcurve.atomic import atomic_write_json, atomic_write_table
+    from lightcurve.scenarios.relnav import _AXES, load_relnav_scenario
+    from lightcurve.studies.relnav import simulate_approach
+
     if not 0.0 <= args.outlier_rate <= 1.0:
         raise ValueError(f"--outlier-rate must be between 0 and 1, got {args.outlier_rate}")
     if not args.outlier_size >= 0:

@@ -11,14 +11,15 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import brdf
 import shapes
-from shapes.articulation import ArticulatedModel, axis_rotation
-from shapes.library import LibraryReadOnlyError
+
+if TYPE_CHECKING:
+    from shapes.articulation import ArticulatedModel
 
 NAME = "shapes"
 HELP = "manage the shape library (list, show, add, remove, validate, rebuild, render)"
@@ -131,6 +132,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from shapes.library import LibraryReadOnlyError
+
     library = shapes.get_library(args.library)
     command = args.shapes_command
     try:
@@ -314,6 +317,7 @@ def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
 
 
 def _render(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    from shapes.articulation import ArticulatedModel
     from shapes.preview import render_preview
 
     view = _floats(args.view, "--view", (3,))
@@ -329,6 +333,8 @@ def _render(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
 
 def _pose(model: ArticulatedModel, args: argparse.Namespace) -> shapes.FacetModel:
     """The shape with its moving parts turned per --sun and --angle."""
+    from shapes.articulation import axis_rotation
+
     moving = model.articulation.moving
     angles = np.zeros(len(moving))
     if args.sun:

@@ -25,16 +25,15 @@ extinction_mag and saturated added (see docs/rendering.md).
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lightcurve import io
 from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
-from lightcurve.conditions import load_conditions
-from lightcurve.profiles import PROFILES
-from lightcurve.render import SHADOW_MODES
-from lightcurve.simulate import CCDNoise, GaussianNoise, ObservingNoise, simulate
-from shapes import get_library
+from lightcurve.commands._source import dataclass_fields, literal
+
+if TYPE_CHECKING:
+    from lightcurve.simulate import CCDNoise
 
 NAME = "simulate"
 HELP = "simulate a light curve of a library shape over a geometry file"
@@ -64,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--profile",
-        choices=PROFILES,
+        choices=literal("lightcurve.profiles", "PROFILES"),
         default="torque-free",
         help="attitude profile (torque-free: tumbling from --q0/--omega0)",
     )
@@ -94,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="*",
         metavar="KEY=VALUE",
         help="CCD photon-noise model; keys: "
-        + ", ".join(CCDNoise.__dataclass_fields__)
+        + ", ".join(dataclass_fields("lightcurve.noise", "CCDNoise"))
         + " (defaults: a 0.5 m telescope, 1 s exposures)",
     )
     noise.add_argument(
@@ -113,7 +112,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--shadows",
-        choices=SHADOW_MODES,
+        choices=literal("lightcurve.render", "SHADOW_MODES"),
         default="auto",
         help="self-shadowing: none, the shape's visibility table, ray casting, or auto "
         "(the table when the shape has one, else none)",
@@ -123,6 +122,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _ccd(pairs: list[str]) -> CCDNoise:
+    from lightcurve.simulate import CCDNoise
+
     values = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
@@ -139,6 +140,11 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightcurve import io
+    from lightcurve.conditions import load_conditions
+    from lightcurve.simulate import GaussianNoise, ObservingNoise, simulate
+    from shapes import get_library
+
     if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):
         raise ValueError("--profile torque-free needs --q0 and --omega0")
     if args.profile != "torque-free" and args.omega0 is not None:

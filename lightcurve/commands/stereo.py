@@ -12,15 +12,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import pandas as pd
-from tqdm import tqdm
-
-from lightcurve.atomic import atomic_write_json, atomic_write_table
-from lightcurve.scenarios.stereo import (
-    load_stereo_scenario,
-)
-from lightcurve.studies.stereo import run_monte_carlo
-
 NAME = "stereo"
 
 
@@ -40,6 +31,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve stereo``."""
+    import pandas as pd
+    from tqdm import tqdm
+
+    from lightcurve.atomic import atomic_write_json, atomic_write_table
+    from lightcurve.scenarios.stereo import load_stereo_scenario
+    from lightcurve.studies.stereo import run_monte_carlo
+
     if args.runs < 1:
         raise ValueError(f"--runs must be at least 1, got {args.runs}")
     scenario = load_stereo_scenario(args.scenario)

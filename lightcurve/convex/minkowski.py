@@ -16,14 +16,16 @@ makes the sum vanish.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from scipy.spatial import HalfspaceIntersection
 from threadpoolctl import threadpool_limits
 
-from shapes import FacetModel
-from shapes.mass import solid_properties
+from lightcurve.convex.mass import solid_properties
+
+if TYPE_CHECKING:
+    from shapes import FacetModel
 
 __all__ = [
     "close_gaussian_image",
@@ -335,9 +337,9 @@ def minkowski_polyhedron(
             f"(largest area mismatch {np.max(np.abs(gradient)):.2e} > tol {tol:.1e})"
         )
     vertices, faces = p.vertices, _fan(p)
-    mass = solid_properties(vertices[faces])
-    vertices = vertices - mass.center_of_mass
-    vertices *= (volume / mass.measure) ** (1 / 3)
+    mass = solid_properties(vertices, faces)
+    vertices = vertices - mass.centroid
+    vertices *= (volume / mass.volume) ** (1 / 3)
     return vertices, faces
 
 
@@ -357,13 +359,9 @@ def equivalent_ellipsoid(shape: FacetModel | tuple[np.ndarray, np.ndarray]) -> n
     (3,) float
         ``(a, b, c) / R_eq``, descending.
     """
-    if isinstance(shape, FacetModel):
-        triangles = shape.triangles
-    else:
-        vertices, faces = shape
-        triangles = np.asarray(vertices)[np.asarray(faces)]
-    props = solid_properties(triangles)
+    vertices, faces = (shape.vertices, shape.faces) if hasattr(shape, "faces") else shape
+    props = solid_properties(vertices, faces)
     moments = np.linalg.eigvalsh(props.inertia)
-    axes = np.sqrt(np.clip(5.0 * (moments.sum() - 2 * moments) / (2 * props.mass), 0, None))
-    radius = (3 * props.measure / (4 * np.pi)) ** (1 / 3)
+    axes = np.sqrt(np.clip(5.0 * (moments.sum() - 2 * moments) / (2 * props.volume), 0, None))
+    radius = (3 * props.volume / (4 * np.pi)) ** (1 / 3)
     return np.sort(axes)[::-1] / radius
