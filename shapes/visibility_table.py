@@ -36,6 +36,7 @@ DEFAULT_RESOLUTION = 26
 #: Version of the table files written by :meth:`VisibilityTable.save`. Version 1 stored one
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -106,6 +107,7 @@ class VisibilityTable:
         self.layout["segment_weight"] = np.asarray(layout["segment_weight"], np.float64)
         self._check()
         self._lookups: dict[bytes, dict[str, np.ndarray]] = {}
+        self._frozen: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
         self._cache: dict[Any, Any] = {}
 
     def _check(self) -> None:
@@ -202,7 +204,11 @@ class VisibilityTable:
     def _lookup(self, order: np.ndarray | None) -> dict[str, np.ndarray]:
         """The kernels' arrays with output column ``j`` = facet ``order[j]`` (None: the
         table's own order; a facet may fill several columns or none; -1: a column whose
-        value is left unspecified), cached."""
+        value is left unspecified), cached. A read-only ``order`` array (a renderer's) is
+        recognised by identity, without hashing its contents on every call."""
+        frozen = isinstance(order, np.ndarray) and not order.flags.writeable
+        if frozen and id(order) in self._frozen and self._frozen[id(order)][0] is order:
+            return self._frozen[id(order)][1]
         key = b"" if order is None else np.asarray(order, np.int64).tobytes()
         if key not in self._lookups:
             order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
@@ -235,6 +241,8 @@ class VisibilityTable:
             lookup["full"] = full
             lookup.update(self._cell_entries(order))
             self._lookups[key] = lookup
+        if frozen:
+            self._frozen[id(order)] = (order, self._lookups[key])
         return self._lookups[key]
 
     def _segments(self) -> dict[str, np.ndarray]:
@@ -413,9 +421,12 @@ class VisibilityTable:
             barycentric weights (the bits are constants).
         """
         lookup = self._lookup(order)
-        if _is_tensor(light) or _is_tensor(view):
-            return self._joint_torch(light, view, lookup, facing)
-        light, view = _as_float_array(light), _as_float_array(view)
+        if not (isinstance(light, np.ndarray) and isinstance(view, np.ndarray)):
+            if _is_tensor(light) or _is_tensor(view):
+                return self._joint_torch(light, view, lookup, facing)
+            light, view = _as_float_array(light), _as_float_array(view)
+        if light.dtype not in _FLOATS or view.dtype not in _FLOATS:
+            light, view = _as_float_array(light), _as_float_array(view)
         if light.shape != view.shape or light.shape[-1:] != (3,):
             raise ValueError(
                 f"light and view must have the same shape (..., 3), got {light.shape} and "
