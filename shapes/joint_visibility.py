@@ -18,13 +18,16 @@ is interpolated per sample point: with ``a`` and ``b`` the three grid nodes arou
 with ``ω_s`` the area share of one point of segment ``s``. At grid nodes this is the exact
 fraction of sample points that are both lit and seen; it is symmetric in ``L`` and ``V``.
 
-Speed: per-direction bit sets of the facets whose points are *all* visible (``full``) and
-of those none of whose points is (``empty``), reduced over the three corners of every grid
-cell, settle 64 facets at a time with a few ANDs: 1 when all points see the six corners, 0
-when none sees the three corners of ``L``'s or of ``V``'s cell. Only facets that are partly
-shadowed around ``L`` or ``V`` and face both are looked up point by point, and within them
-a word of points that is all ones at the three nodes of one side needs only the other
-side's three words (none when all ones on both sides).
+Speed (:func:`joint_rows`): the lookup reads per-cell entry lists
+(:meth:`shapes.visibility.VisibilityTable._cells`): for every grid cell, one entry per facet
+that faces one of the cell's corners and is not fully visible from all three, with the
+facet's visible fraction ``f_a`` from each corner and its segments' words at the three
+corners, stored contiguously. A facet in neither of the two cells' lists has ``J = 1`` (all
+its points see the six corners) or faces away; one in a single list has the blend
+``Σ_a α_a f_a`` of that side (the other side's words are all ones: ``Σ_b β_b = 1``); only a
+facet in both lists, facing both directions, needs the nine popcounts per segment. Rows are
+located first and the two runs of the row two ahead are prefetched, so their cache misses
+overlap with work.
 """
 
 from __future__ import annotations
