@@ -435,27 +435,19 @@ def direction_fractions(bits, segment_start, segment_word, segment_mask, segment
 
 
 @njit(**_JIT)
-def full_flags(bits, segment_start, segment_word, segment_mask, full, empty):
-    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64``: every point of facet
-    ``k`` is visible from ``d`` (``full[d]``; facets without segments and the padding bits
-    are always set) / no point of facet ``k`` is (``empty[d]``; never set for facets
-    without segments)."""
+def full_flags(bits, segment_start, segment_word, segment_mask, full):
+    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64`` of ``full[d]``: every
+    point of facet ``k`` is visible from ``d`` (facets without segments and the padding bits
+    are always set)."""
     n_facets = segment_start.shape[0] - 1
     for d in range(bits.shape[0]):
         for c in range(full.shape[1]):
             full[d, c] = ~np.uint64(0)
-            empty[d, c] = np.uint64(0)
         for k in range(n_facets):
             flag = np.uint64(1) << np.uint64(k % 64)
-            seen = False
             for s in range(segment_start[k], segment_start[k + 1]):
-                word = bits[d, segment_word[s]] & segment_mask[s]
-                if word != segment_mask[s]:
+                if bits[d, segment_word[s]] & segment_mask[s] != segment_mask[s]:
                     full[d, k // 64] &= ~flag
-                if word != 0:
-                    seen = True
-            if not seen and segment_start[k] < segment_start[k + 1]:
-                empty[d, k // 64] |= flag
 
 
 def segment_layout(

@@ -152,7 +152,7 @@ class VisibilityTable:
 
     @property
     def nbytes(self) -> int:
-        """Memory of the table's arrays in the renderer's use (bits, flags, segments), bytes."""
+        """Memory of the table's arrays for lookups (bits, per-cell entries, segments), bytes."""
         lookup = self._lookup(None)
         return int(self.bits.nbytes + sum(a.nbytes for a in lookup.values()))
 
@@ -236,7 +236,6 @@ class VisibilityTable:
                 lookup["segment_word"],
                 lookup["segment_mask"],
                 full,
-                np.empty_like(full),
             )
             lookup["full"] = full
             lookup.update(self._cell_entries(order))
@@ -278,7 +277,6 @@ class VisibilityTable:
                 seg["segment_word"],
                 seg["segment_mask"],
                 full_words,
-                np.empty_like(full_words),
             )
             full = np.unpackbits(full_words.view(np.uint8), axis=1, bitorder="little")[:, :k]
             front = self.grid.directions @ self.normals.T > 0.0
