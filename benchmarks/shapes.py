@@ -48,7 +48,8 @@ def bumpy_sphere(subdivisions: int) -> shapes.FacetModel:
 
 
 def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
-    """Build time, rays, in-memory size and file size of the tables (default sampling)."""
+    """Build time, rays, in-memory size (the bits and the lookup's per-cell entries, with the
+    time to derive the latter when a table is loaded) and file size of the tables."""
     library = shapes.get_library(shapes.builtin_library_path())
     models = [bumpy_sphere(s) for s in sizes] + [library.load(n) for n in ("itokawa", "bennu")]
     rows = []
@@ -59,6 +60,11 @@ def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
         table = shapes.build_visibility_table(compiled, resolution=resolution, samples=samples)
         seconds = time.perf_counter() - start
         rays = len(table.grid) * table.n_points
+        table.joint(np.eye(3)[:1], np.eye(3)[:1])  # load the kernels
+        fresh = table.rotated(np.eye(3))  # same table, nothing derived yet
+        cpu = time.process_time()
+        fresh.joint(np.eye(3)[:1], np.eye(3)[:1])
+        lookup_cpu_seconds = time.process_time() - cpu
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / "table.visibility.npz"
             table.save(path)
@@ -76,6 +82,7 @@ def build_times(resolution: int, samples: int, sizes: list[int]) -> list[dict]:
                 "rays": rays,
                 "seconds": round(seconds, 2),
                 "mrays_per_s": round(rays / seconds / 1e6, 2),
+                "lookup_build_cpu_seconds": round(lookup_cpu_seconds, 2),
                 "bits_mib": round(table.bits.nbytes / 2**20, 2),
                 "memory_mib": round(table.nbytes / 2**20, 2),
                 "file_mib": round(file_bytes / 2**20, 2),
@@ -206,10 +213,46 @@ def _light_curve(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return q, sun, observer
 
 
-def render_speed(epochs: int, repeats: int) -> list[dict]:
-    """``Renderer(shadows="table")`` against ``"none"`` on the same epochs, measured in
-    alternation (best of ``repeats`` rounds), for random attitudes (every epoch in other
-    grid cells: the worst case for the lookup's caches) and a light curve."""
+#: Materials the render speed is measured with: the shapes' own, and every distinct material
+#: replaced by a Lambert or an Ashikhmin–Shirley one (albedos 0.01 apart, so that materials
+#: stay distinct and the compiled facets, hence the tables, are unchanged).
+MATERIALS = {
+    "lambert": ("lambert", {"rd": 0.3}),
+    "ashikhmin-shirley": ("ashikhmin-shirley", {"rd": 0.2, "rs": 0.5, "nu": 10.0, "nv": 10.0}),
+}
+
+
+def with_material(model: shapes.FacetModel, kind: str) -> shapes.FacetModel:
+    """``model`` with its own materials (``"builtin"``) or those of :data:`MATERIALS`."""
+    if kind == "builtin":
+        return model
+    brdf, params = MATERIALS[kind]
+    distinct, index = model.distinct_materials
+    replaced = [
+        shapes.Material(brdf, {**params, "rd": params["rd"] + 0.01 * i})
+        for i in range(len(distinct))
+    ]
+    return model.with_materials(
+        {group: replaced[i] for group, i in zip(model.group_names, index, strict=True)}
+    )
+
+
+def _per_row(func, rows: int, clock) -> float:
+    """Time of ``func()`` per row, µs."""
+    start = clock()
+    func()
+    return 1e6 * (clock() - start) / rows
+
+
+def render_speed(epochs: int, repeats: int, exact_epochs: int) -> list[dict]:
+    """Per-row cost of ``Renderer(shadows=...)`` for "none", "table" and "exact" on the same
+    epochs, best of ``repeats`` alternated rounds: CPU time of one thread (the kernels and
+    torch set to one thread) and, for the shapes' own materials, wall time on two threads.
+    Workloads: random attitudes (every epoch in other grid cells: the worst case for the
+    lookup's caches) and a light curve; "exact" (ray casting) on the first ``exact_epochs``.
+    """
+    from lightcurve.kernels import set_num_threads
+
     library = shapes.get_library(shapes.builtin_library_path())
     rng = np.random.default_rng(SEED)
     observer = 4e7 * _unit(rng.normal(size=(epochs, 3)))
@@ -221,37 +264,50 @@ def render_speed(epochs: int, repeats: int) -> list[dict]:
         ),
         "light_curve": _light_curve(epochs),
     }
+    settings = [("builtin", torch.float64, 1), ("builtin", torch.float32, 1)]
+    settings += [(kind, torch.float64, 1) for kind in MATERIALS]
+    settings += [("builtin", torch.float64, 2)]
+    threads_before = torch.get_num_threads()
     rows = []
     for name in ("box_wing", "itokawa", "bennu"):
-        shape = library.load(name)
-        for dtype in (torch.float64, torch.float32):
-            renderers = {mode: Renderer(shape, shadows=mode, dtype=dtype) for mode in MODES}
+        for material, dtype, threads in settings:
+            shape = with_material(library.load(name), material)
+            modes = MODES if threads == 1 and dtype == torch.float64 else MODES[:2]
+            renderers = {mode: Renderer(shape, shadows=mode, dtype=dtype) for mode in modes}
+            torch.set_num_threads(threads)
+            set_num_threads(threads)
+            clock = time.process_time if threads == 1 else time.perf_counter
             for workload, (q, sun, obs) in workloads.items():
-                seconds = dict.fromkeys(MODES, np.inf)
+                size = {mode: exact_epochs if mode == "exact" else epochs for mode in modes}
+                per_row = dict.fromkeys(modes, np.inf)
                 for renderer in renderers.values():
                     renderer.flux(q[:10], sun[:10], obs[:10])  # compile or load the kernels
                 for _ in range(repeats):
                     for mode, renderer in renderers.items():
-                        seconds[mode] = min(
-                            seconds[mode], _best(lambda r=renderer, g=(q, sun, obs): r.flux(*g), 1)
-                        )
-                rows.append(
-                    {
-                        "shape": name,
-                        "facets": len(shape.compiled()),
-                        "dtype": str(dtype).removeprefix("torch."),
-                        "workload": workload,
-                        "epochs": epochs,
-                        "none_ms": round(1e3 * seconds["none"], 1),
-                        "table_ms": round(1e3 * seconds["table"], 1),
-                        "table_over_none": round(seconds["table"] / seconds["none"], 2),
-                    }
-                )
+                        k = size[mode]
+                        run = lambda r=renderer, g=(q[:k], sun[:k], obs[:k]): r.flux(*g)  # noqa: E731
+                        per_row[mode] = min(per_row[mode], _per_row(run, k, clock))
+                row = {
+                    "shape": name,
+                    "facets": len(shape.compiled()),
+                    "material": material,
+                    "dtype": str(dtype).removeprefix("torch."),
+                    "clock": "cpu, 1 thread" if threads == 1 else f"wall, {threads} threads",
+                    "workload": workload,
+                    "epochs": size,
+                    **{f"{mode}_us_per_row": round(per_row[mode], 3) for mode in modes},
+                    "table_over_none": round(per_row["table"] / per_row["none"], 2),
+                }
+                if "exact" in modes:
+                    row["exact_over_none"] = round(per_row["exact"] / per_row["none"], 1)
+                rows.append(row)
                 print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    torch.set_num_threads(threads_before)
+    set_num_threads(None)
     return rows
 
 
-MODES = ("none", "table")
+MODES = ("none", "table", "exact")
 
 
 def main() -> None:
@@ -279,7 +335,7 @@ def main() -> None:
         result["joint_lookup"] = lookup_throughput(4096, 3 if args.quick else 10)
     if "render" in sections:
         result["render_speed"] = render_speed(
-            1000 if args.quick else 10_000, 3 if args.quick else 7
+            1000 if args.quick else 10_000, 3 if args.quick else 7, 20 if args.quick else 200
         )
     result["load_average"] = os.getloadavg()
     print(json.dumps(result, indent=2))

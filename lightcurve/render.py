@@ -392,7 +392,9 @@ class Renderer:
         """Compiled facet of each slot of the fused kernels (-1: padding), for the visibility
         table to write the joint fractions straight into the kernels' layout and dtype."""
         fused = self._fused_flux()
-        return np.where(fused.padding, -1, self._order[fused.source])
+        slots = np.where(fused.padding, -1, self._order[fused.source])
+        slots.flags.writeable = False  # the table recognises it without hashing it
+        return slots
 
     def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
         """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""

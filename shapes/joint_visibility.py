@@ -18,13 +18,16 @@ is interpolated per sample point: with ``a`` and ``b`` the three grid nodes arou
 with ``ω_s`` the area share of one point of segment ``s``. At grid nodes this is the exact
 fraction of sample points that are both lit and seen; it is symmetric in ``L`` and ``V``.
 
-Speed: per-direction bit sets of the facets whose points are *all* visible (``full``) and
-of those none of whose points is (``empty``), reduced over the three corners of every grid
-cell, settle 64 facets at a time with a few ANDs: 1 when all points see the six corners, 0
-when none sees the three corners of ``L``'s or of ``V``'s cell. Only facets that are partly
-shadowed around ``L`` or ``V`` and face both are looked up point by point, and within them
-a word of points that is all ones at the three nodes of one side needs only the other
-side's three words (none when all ones on both sides).
+Speed (:func:`joint_rows`): the lookup reads per-cell entry lists
+(:meth:`shapes.visibility.VisibilityTable._cells`): for every grid cell, one entry per facet
+that faces one of the cell's corners and is not fully visible from all three, with the
+facet's visible fraction ``f_a`` from each corner and its segments' words at the three
+corners, stored contiguously. A facet in neither of the two cells' lists has ``J = 1`` (all
+its points see the six corners) or faces away; one in a single list has the blend
+``Σ_a α_a f_a`` of that side (the other side's words are all ones: ``Σ_b β_b = 1``); only a
+facet in both lists, facing both directions, needs the nine popcounts per segment. Rows are
+located first and the two runs of the row two ahead are prefetched, so their cache misses
+overlap with work.
 """
 
 from __future__ import annotations
@@ -34,9 +37,11 @@ import math
 import llvmlite.ir as llvm_ir
 import numpy as np
 from numba import njit, types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 __all__ = [
+    "cell_fractions",
     "direction_fractions",
     "full_flags",
     "joint_rows",
@@ -45,30 +50,38 @@ __all__ = [
 ]
 
 _JIT = {"nogil": True, "cache": True, "error_model": "numpy"}
+_AHEAD = 2  # rows between a row's prefetch and its use
 
 
 @intrinsic
 def _popcount(typingctx, x):
-    """Number of set bits of a uint64 (LLVM ``ctpop``: one instruction where the CPU has it)."""
+    """Number of set bits of a uint64 (LLVM ``ctpop``: one instruction where the CPU has it),
+    typed int64 (its conversion to float is one instruction, the unsigned one is not)."""
     if not isinstance(x, types.Integer):
         return None
 
     def codegen(context, builder, signature, args):
         return builder.ctpop(args[0])
 
-    return types.uint64(types.uint64), codegen
+    return types.int64(types.uint64), codegen
 
 
 @intrinsic
-def _trailing_zeros(typingctx, x):
-    """Index of the lowest set bit of a non-zero uint64 (LLVM ``cttz``)."""
-    if not isinstance(x, types.Integer):
+def _prefetch(typingctx, array, index):
+    """Hint the CPU to load the cache line of ``array[index]`` (1-D; LLVM ``prefetch``)."""
+    if not isinstance(array, types.Array) or array.ndim != 1:
         return None
 
     def codegen(context, builder, signature, args):
-        return builder.cttz(args[0], llvm_ir.Constant(llvm_ir.IntType(1), 1))
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        address = builder.bitcast(builder.gep(data, [args[1]]), llvm_ir.IntType(8).as_pointer())
+        i32 = llvm_ir.IntType(32)
+        kind = llvm_ir.FunctionType(llvm_ir.VoidType(), [address.type, i32, i32, i32])
+        prefetch = cgutils.get_or_insert_function(builder.module, kind, "llvm.prefetch.p0i8")
+        builder.call(prefetch, [address, i32(0), i32(3), i32(1)])  # read, keep, data
+        return context.get_dummy_value()
 
-    return types.uint64(types.uint64), codegen
+    return types.void(array, types.intp), codegen
 
 
 @njit(**_JIT)
@@ -105,22 +118,6 @@ def _locate(x, y, z, n, flat_index):
 
 
 @njit(**_JIT)
-def _word(row_words, row_rank, compact, d, w):
-    """Word ``w`` of grid direction ``d`` from the sparse rows: all ones unless stored.
-
-    ``row_words[d]`` flags the words of row ``d`` with a point that does not see the
-    direction; they are stored in ``compact`` in row order, ``row_rank[d, c]`` being the
-    index of the first stored word of chunk ``c`` (64 words) of row ``d``.
-    """
-    c = w >> 6
-    flags = row_words[d, c]
-    bit = np.uint64(w & 63)
-    below = flags & ((np.uint64(1) << bit) - np.uint64(1))
-    value = compact[row_rank[d, c] + np.int64(_popcount(below))]
-    return value if (flags >> bit) & np.uint64(1) else ~np.uint64(0)
-
-
-@njit(**_JIT)
 def _rotate(vectors, r, rotation):
     """``vectors[r] @ rotation``: body frame → the table's grid frame."""
     x, y, z = vectors[r, 0], vectors[r, 1], vectors[r, 2]
@@ -154,21 +151,19 @@ def joint_rows(
     rotation,
     n,
     flat_index,
-    row_words,
-    row_rank,
-    compact,
-    cell_partial,
-    cell_front,
-    cell_hidden,
-    normals,
+    cell_start,
+    cell_word_start,
+    entry_value,
+    entry_facet,
+    entry_word,
+    cell_words,
     segment_start,
-    segment_word,
-    segment_mask,
     segment_weight,
+    normals,
     facing,
     out,
 ):
-    """Interpolated joint (lit and seen) fractions of every facet for rows of ``(L, V)``.
+    """Interpolated joint (lit and seen) fractions of every column for rows of ``(L, V)``.
 
     Parameters
     ----------
@@ -178,153 +173,189 @@ def joint_rows(
         Grid frame → body frame.
     n : int
         Grid resolution; ``flat_index`` its ``(6 (n+1)²,)`` node lookup.
-    row_words, row_rank, compact :
-        The per-direction bit rows, stored sparsely (see :func:`_word`).
-    cell_partial, cell_front, cell_hidden : (cells, C) uint64
-        Per grid cell, bit ``k % 64`` of word ``k // 64``: facet ``k`` has a point that
-        does not see one of the cell's corners; facet ``k`` faces one of them; no point of
-        facet ``k`` sees any of them. A facet facing ``L`` faces a corner of ``L``'s cell
-        (``L`` is their positive blend); a facet all of whose points see the six corners
-        has joint fraction 1, one hidden from the three corners of ``L``'s or ``V``'s cell
-        has 0.
-    normals : (3, K) float64
-        Facet normals in the grid frame.
+    cell_start : (cells + 1,) int64
+        Entries of grid cell ``c``: ``cell_start[c]:cell_start[c+1]``, one per output column
+        whose facet faces a corner of the cell and is not fully visible from all three.
+    cell_word_start : (cells + 1,) int64
+        Rows of ``cell_words`` holding the bits of cell ``c``'s entries (for prefetching).
+    entry_value : (E, 4) float64
+        Per entry: the visible fraction of its facet from each of the cell's three corners,
+        and its output column (an integer-valued float: one record of 32 bytes per entry).
+    entry_facet : (E,) int32
+        Facet of each entry.
+    entry_word : (E,) int64
+        First row of the entry's block in ``cell_words``: one row per segment of the facet.
+    cell_words : (S_cells, 3) uint64
+        A segment's points' bits from the cell's three corners (masked to the segment).
     segment_start : (K + 1,) int64
         Segments of facet ``k``: ``segment_start[k]:segment_start[k+1]``.
-    segment_word, segment_mask, segment_weight : (S,) arrays
-        Word, bit mask within it, and area share of each of its points.
+    segment_weight : (S,) float64
+        Area share of each point of a segment.
+    normals : (3, C) float64
+        Normal of each column's facet in the grid frame (0 for unused columns).
     facing : bool
-        True: facets turned away from ``L`` or ``V`` get 0. False: they get 1 or their
-        table value (cheaper; for callers that multiply by ``max(0, n·L) max(0, n·V)``).
-    out : (R, K) float array
+        True: columns turned away from ``L`` or ``V`` get 0. False: their value is
+        unspecified (callers multiply by ``max(0, n·L) max(0, n·V)``).
+    out : (R, C) float array
         Output.
+
+    Notes
+    -----
+    All rows are located first; the entries of row ``r + 2``'s two cells are then prefetched
+    while row ``r`` is computed, so that their cache misses overlap with work.
     """
-    n_facets = normals.shape[1]
-    chunks = cell_partial.shape[1]
-    stored_l = np.empty(row_words.shape[1], np.uint64)
-    stored_v = np.empty(row_words.shape[1], np.uint64)
-    nothing = np.zeros(row_words.shape[1], np.uint64)
-    for r in range(light.shape[0]):
+    rows, columns = light.shape[0], out.shape[1]
+    where = np.empty((rows, 2), np.int64)  # cells of L and V
+    geometry = np.empty((rows, 12))  # L, V (grid frame), their corner weights
+    for r in range(rows):
         lx, ly, lz = _rotate(light, r, rotation)
         vx, vy, vz = _rotate(view, r, rotation)
-        if facing:
-            for k in range(n_facets):
-                nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
-                nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
-                out[r, k] = 1.0 if (nl > 0.0) & (nv > 0.0) else 0.0
-        else:
-            for k in range(n_facets):
-                out[r, k] = 1.0
-        cl, a0, a1, a2, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
-        cv, b0, b1, b2, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
-        # words with a point that does not see one of L's (V's) nodes; all others are ones
-        for c in range(row_words.shape[1]):
-            stored_l[c] = row_words[a0, c] | row_words[a1, c] | row_words[a2, c]
-            stored_v[c] = row_words[b0, c] | row_words[b1, c] | row_words[b2, c]
-        light_nodes = (a0, a1, a2, wa0, wa1, wa2)
-        view_nodes = (b0, b1, b2, wb0, wb1, wb2)
-        for c in range(chunks):
-            front = cell_front[cl, c] & cell_front[cv, c]
-            hidden = (cell_hidden[cl, c] | cell_hidden[cv, c]) & front
-            partial_l = cell_partial[cl, c] & front & ~hidden
-            partial_v = cell_partial[cv, c] & front & ~hidden
-            while hidden != 0:  # every popcount is 0
-                k = c * 64 + np.int64(_trailing_zeros(hidden))
-                hidden &= hidden - np.uint64(1)
-                out[r, k] = 0.0
-            todo = partial_l | partial_v
-            while todo != 0:
-                bit = _trailing_zeros(todo)
-                todo &= todo - np.uint64(1)
-                k = c * 64 + np.int64(bit)
-                if not _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
-                    continue  # 0 (facing) or unspecified: no lookup
-                # a side where the facet is not partly shadowed has all its words ones
-                out[r, k] = _joint_facet(
-                    k,
-                    light_nodes,
-                    view_nodes,
-                    stored_l if (partial_l >> bit) & np.uint64(1) else nothing,
-                    stored_v if (partial_v >> bit) & np.uint64(1) else nothing,
-                    row_words,
-                    row_rank,
-                    compact,
-                    segment_start,
-                    segment_word,
-                    segment_mask,
-                    segment_weight,
+        cl, _, _, _, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
+        cv, _, _, _, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
+        where[r, 0], where[r, 1] = cl, cv
+        g = geometry[r]
+        g[0], g[1], g[2], g[3], g[4], g[5] = lx, ly, lz, vx, vy, vz
+        g[6], g[7], g[8], g[9], g[10], g[11] = wa0, wa1, wa2, wb0, wb1, wb2
+    values = entry_value.reshape(-1)
+    words = cell_words.reshape(-1)
+    for r in range(min(rows, _AHEAD)):
+        _prefetch_cells(where[r], cell_start, cell_word_start, values, entry_word, words)
+    stamp = np.full(columns, -1, np.int64)  # row in which the column got a V-side entry
+    partner = np.zeros(columns, np.int64)  # that entry
+    for r in range(rows):
+        if r + _AHEAD < rows:
+            _prefetch_cells(
+                where[r + _AHEAD], cell_start, cell_word_start, values, entry_word, words
+            )
+        lx, ly, lz, vx, vy, vz, wa0, wa1, wa2, wb0, wb1, wb2 = (
+            geometry[r, 0],
+            geometry[r, 1],
+            geometry[r, 2],
+            geometry[r, 3],
+            geometry[r, 4],
+            geometry[r, 5],
+            geometry[r, 6],
+            geometry[r, 7],
+            geometry[r, 8],
+            geometry[r, 9],
+            geometry[r, 10],
+            geometry[r, 11],
+        )
+        cl, cv = where[r, 0], where[r, 1]
+        for j in range(columns):
+            out[r, j] = 1.0
+        # one-sided entries: the blend of the corners' visible fractions
+        for e in range(cell_start[cv], cell_start[cv + 1]):
+            j = np.int64(entry_value[e, 3])
+            out[r, j] = wb0 * entry_value[e, 0] + wb1 * entry_value[e, 1] + wb2 * entry_value[e, 2]
+            stamp[j] = r
+            partner[j] = e
+        for e in range(cell_start[cl], cell_start[cl + 1]):
+            j = np.int64(entry_value[e, 3])
+            if stamp[j] != r:
+                out[r, j] = (
+                    wa0 * entry_value[e, 0] + wa1 * entry_value[e, 1] + wa2 * entry_value[e, 2]
                 )
+            elif _faces_both(normals, j, lx, ly, lz, vx, vy, vz):
+                out[r, j] = _joint_words(
+                    cell_words,
+                    entry_word[e],
+                    entry_word[partner[j]],
+                    segment_start[entry_facet[e]],
+                    segment_start[entry_facet[e] + 1],
+                    segment_weight,
+                    wa0,
+                    wa1,
+                    wa2,
+                    wb0,
+                    wb1,
+                    wb2,
+                )
+        if facing:
+            for j in range(columns):
+                if not _faces_both(normals, j, lx, ly, lz, vx, vy, vz):
+                    out[r, j] = 0.0
+
+
+@njit(**_JIT)
+def _prefetch_cells(cells, cell_start, cell_word_start, values, entry_word, words):
+    """Prefetch the entries (values, word offsets, bits) of the two cells ``cells``."""
+    for c in (cells[0], cells[1]):
+        for i in range(4 * cell_start[c], 4 * cell_start[c + 1], 8):
+            _prefetch(values, i)
+        for i in range(cell_start[c], cell_start[c + 1], 8):
+            _prefetch(entry_word, i)
+        for i in range(3 * cell_word_start[c], 3 * cell_word_start[c + 1], 8):
+            _prefetch(words, i)
 
 
 @njit(**_JIT)
 def _faces_both(normals, k, lx, ly, lz, vx, vy, vz):
-    """Facet ``k`` faces both ``L`` and ``V``."""
+    """Column ``k``'s facet faces both ``L`` and ``V``."""
     nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
     nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
     return nl > 0.0 and nv > 0.0
 
 
 @njit(**_JIT)
-def _blend(nodes, row_words, row_rank, compact, w, m):
-    """``Σ_a α_a popcount(x_a & m)`` over the three nodes ``(d0, d1, d2, α0, α1, α2)``."""
-    d0, d1, d2, w0, w1, w2 = nodes
-    return (
-        w0 * float(_popcount(_word(row_words, row_rank, compact, d0, w) & m))
-        + w1 * float(_popcount(_word(row_words, row_rank, compact, d1, w) & m))
-        + w2 * float(_popcount(_word(row_words, row_rank, compact, d2, w) & m))
-    )
+def _joint_words(cell_words, first_l, first_v, s0, s1, weight, wa0, wa1, wa2, wb0, wb1, wb2):
+    """``Σ_s ω_s Σ_a Σ_b α_a β_b popcount(x_{a,s} & y_{b,s})`` of one facet, from the
+    facet's word blocks in ``L``'s cell (rows from ``first_l``) and ``V``'s (``first_v``).
 
-
-@njit(**_JIT)
-def _joint_facet(
-    k,
-    light_nodes,
-    view_nodes,
-    stored_l,
-    stored_v,
-    row_words,
-    row_rank,
-    compact,
-    segment_start,
-    segment_word,
-    segment_mask,
-    segment_weight,
-):
-    """``J_k = Σ_s ω_s Σ_a Σ_b α_a β_b popcount(x_{a,s} & y_{b,s})`` of one facet.
-
-    A segment whose word is all ones at the three nodes of one side (not stored, see
-    ``stored_l``/``stored_v``) needs only the other side's three words (``Σ_a α_a = 1``), and
-    none when both are: the result then differs from the nine-pair sum by rounding only.
+    A side whose three words are equal (the shadow does not move across the cell's points of
+    that word) needs one word (``Σ α_a = 1``): three popcounts, or one when both sides are
+    uniform, instead of nine; the result then differs from the nine-pair sum by rounding.
     """
-    a0, a1, a2, wa0, wa1, wa2 = light_nodes
-    b0, b1, b2, wb0, wb1, wb2 = view_nodes
     total = 0.0
-    for s in range(segment_start[k], segment_start[k + 1]):
-        w, m = segment_word[s], segment_mask[s]
-        bit = np.uint64(w & 63)
-        shadowed_l = (stored_l[w >> 6] >> bit) & np.uint64(1)
-        shadowed_v = (stored_v[w >> 6] >> bit) & np.uint64(1)
-        if shadowed_l == 0 and shadowed_v == 0:
-            total += segment_weight[s] * float(_popcount(m))
-        elif shadowed_l == 0:
-            total += segment_weight[s] * _blend(view_nodes, row_words, row_rank, compact, w, m)
-        elif shadowed_v == 0:
-            total += segment_weight[s] * _blend(light_nodes, row_words, row_rank, compact, w, m)
-        else:
-            p00, p01, p02, p10, p11, p12, p20, p21, p22 = _pairs(
-                _word(row_words, row_rank, compact, a0, w) & m,
-                _word(row_words, row_rank, compact, a1, w) & m,
-                _word(row_words, row_rank, compact, a2, w) & m,
-                _word(row_words, row_rank, compact, b0, w),
-                _word(row_words, row_rank, compact, b1, w),
-                _word(row_words, row_rank, compact, b2, w),
+    for i in range(s1 - s0):
+        x0, x1, x2 = (
+            cell_words[first_l + i, 0],
+            cell_words[first_l + i, 1],
+            cell_words[first_l + i, 2],
+        )
+        y0, y1, y2 = (
+            cell_words[first_v + i, 0],
+            cell_words[first_v + i, 1],
+            cell_words[first_v + i, 2],
+        )
+        uniform_l = (x0 == x1) & (x1 == x2)
+        uniform_v = (y0 == y1) & (y1 == y2)
+        if uniform_l and uniform_v:
+            value = float(_popcount(x0 & y0))
+        elif uniform_l:
+            value = (
+                wb0 * float(_popcount(x0 & y0))
+                + wb1 * float(_popcount(x0 & y1))
+                + wb2 * float(_popcount(x0 & y2))
             )
-            total += segment_weight[s] * (
+        elif uniform_v:
+            value = (
+                wa0 * float(_popcount(x0 & y0))
+                + wa1 * float(_popcount(x1 & y0))
+                + wa2 * float(_popcount(x2 & y0))
+            )
+        else:
+            p00, p01, p02, p10, p11, p12, p20, p21, p22 = _pairs(x0, x1, x2, y0, y1, y2)
+            value = (
                 wa0 * (wb0 * p00 + wb1 * p01 + wb2 * p02)
                 + wa1 * (wb0 * p10 + wb1 * p11 + wb2 * p12)
                 + wa2 * (wb0 * p20 + wb1 * p21 + wb2 * p22)
             )
+        total += weight[s0 + i] * value
     return total
+
+
+@njit(**_JIT)
+def cell_fractions(cell_words, entry_word, entry_facet, segment_start, segment_weight, out):
+    """Visible fraction of each entry's facet from its cell's three corners: ``out (E, 3)``."""
+    for e in range(entry_word.shape[0]):
+        k = entry_facet[e]
+        s0 = segment_start[k]
+        for a in range(3):
+            total = 0.0
+            for i in range(segment_start[k + 1] - s0):
+                total += segment_weight[s0 + i] * float(_popcount(cell_words[entry_word[e] + i, a]))
+            out[e, a] = total
 
 
 @njit(**_JIT)
@@ -404,27 +435,19 @@ def direction_fractions(bits, segment_start, segment_word, segment_mask, segment
 
 
 @njit(**_JIT)
-def full_flags(bits, segment_start, segment_word, segment_mask, full, empty):
-    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64``: every point of facet
-    ``k`` is visible from ``d`` (``full[d]``; facets without segments and the padding bits
-    are always set) / no point of facet ``k`` is (``empty[d]``; never set for facets
-    without segments)."""
+def full_flags(bits, segment_start, segment_word, segment_mask, full):
+    """Per grid direction ``d``, bit ``k % 64`` of word ``k // 64`` of ``full[d]``: every
+    point of facet ``k`` is visible from ``d`` (facets without segments and the padding bits
+    are always set)."""
     n_facets = segment_start.shape[0] - 1
     for d in range(bits.shape[0]):
         for c in range(full.shape[1]):
             full[d, c] = ~np.uint64(0)
-            empty[d, c] = np.uint64(0)
         for k in range(n_facets):
             flag = np.uint64(1) << np.uint64(k % 64)
-            seen = False
             for s in range(segment_start[k], segment_start[k + 1]):
-                word = bits[d, segment_word[s]] & segment_mask[s]
-                if word != segment_mask[s]:
+                if bits[d, segment_word[s]] & segment_mask[s] != segment_mask[s]:
                     full[d, k // 64] &= ~flag
-                if word != 0:
-                    seen = True
-            if not seen and segment_start[k] < segment_start[k + 1]:
-                empty[d, k // 64] |= flag
 
 
 def segment_layout(

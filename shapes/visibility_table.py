@@ -36,6 +36,7 @@ DEFAULT_RESOLUTION = 26
 #: Version of the table files written by :meth:`VisibilityTable.save`. Version 1 stored one
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -106,6 +107,7 @@ class VisibilityTable:
         self.layout["segment_weight"] = np.asarray(layout["segment_weight"], np.float64)
         self._check()
         self._lookups: dict[bytes, dict[str, np.ndarray]] = {}
+        self._frozen: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
         self._cache: dict[Any, Any] = {}
 
     def _check(self) -> None:
@@ -150,7 +152,7 @@ class VisibilityTable:
 
     @property
     def nbytes(self) -> int:
-        """Memory of the table's arrays in the renderer's use (bits, flags, segments), bytes."""
+        """Memory of the table's arrays for lookups (bits, per-cell entries, segments), bytes."""
         lookup = self._lookup(None)
         return int(self.bits.nbytes + sum(a.nbytes for a in lookup.values()))
 
@@ -202,54 +204,138 @@ class VisibilityTable:
     def _lookup(self, order: np.ndarray | None) -> dict[str, np.ndarray]:
         """The kernels' arrays with output column ``j`` = facet ``order[j]`` (None: the
         table's own order; a facet may fill several columns or none; -1: a column whose
-        value is left unspecified), cached."""
+        value is left unspecified), cached. A read-only ``order`` array (a renderer's) is
+        recognised by identity, without hashing its contents on every call."""
+        frozen = isinstance(order, np.ndarray) and not order.flags.writeable
+        if frozen and id(order) in self._frozen and self._frozen[id(order)][0] is order:
+            return self._frozen[id(order)][1]
         key = b"" if order is None else np.asarray(order, np.int64).tobytes()
         if key not in self._lookups:
             order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
             if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
                 raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
-            k = len(order)
             unused = order < 0
-            lay = self.layout
-            by_facet = np.argsort(lay["segment_facet"], kind="stable")
-            count = np.bincount(lay["segment_facet"], minlength=self.n_facets)
-            start = np.concatenate([[0], np.cumsum(count)])
-            count = np.where(unused, 0, count[order])
-            first = np.repeat(start[order], count)
+            segments = self._segments()
+            count = np.where(unused, 0, np.diff(segments["segment_start"])[order])
+            first = np.repeat(segments["segment_start"][order], count)
             step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-            segments = by_facet[first + step]
-            mask = self._segment_masks()
             lookup = {
                 "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
-                "segment_word": np.ascontiguousarray(lay["segment_word"][segments]),
-                "segment_mask": np.ascontiguousarray(mask[segments], dtype=np.uint64),
-                "segment_weight": np.ascontiguousarray(lay["segment_weight"][segments]),
+                "segment_word": segments["segment_word"][first + step],
+                "segment_mask": segments["segment_mask"][first + step],
+                "segment_weight": segments["segment_weight"][first + step],
                 # an unused column faces nowhere: never looked up
                 "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
                 "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
                 "rotation": np.ascontiguousarray(self.rotation),
             }
-            full = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
-            hidden = np.empty_like(full)
+            full = np.empty((len(self.grid), -(-len(order) // 64)), dtype=np.uint64)
             _kernels().full_flags(
                 self.bits,
                 lookup["segment_start"],
                 lookup["segment_word"],
                 lookup["segment_mask"],
                 full,
-                hidden,
             )
             lookup["full"] = full
-            front = np.zeros((len(self.grid), 64 * full.shape[1]), dtype=bool)
-            front[:, :k] = self.grid.directions @ lookup["normals"] > 0.0
-            front = _bit_rows(front)
-            corners = self._cell_corners()
-            lookup["cell_partial"] = ~np.bitwise_and.reduce(full[corners], axis=1)
-            lookup["cell_front"] = np.bitwise_or.reduce(front[corners], axis=1)
-            lookup["cell_hidden"] = np.bitwise_and.reduce(hidden[corners], axis=1)
-            lookup.update(self._sparse_rows())
+            lookup.update(self._cell_entries(order))
             self._lookups[key] = lookup
+        if frozen:
+            self._frozen[id(order)] = (order, self._lookups[key])
         return self._lookups[key]
+
+    def _segments(self) -> dict[str, np.ndarray]:
+        """The segments sorted by facet (``segment_start`` per facet), with their bit masks."""
+        if "segments" not in self._cache:
+            lay = self.layout
+            by_facet = np.argsort(lay["segment_facet"], kind="stable")
+            count = np.bincount(lay["segment_facet"], minlength=self.n_facets)
+            self._cache["segments"] = {
+                "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
+                "segment_word": np.ascontiguousarray(lay["segment_word"][by_facet]),
+                "segment_mask": np.ascontiguousarray(self._segment_masks()[by_facet]),
+                "segment_weight": np.ascontiguousarray(lay["segment_weight"][by_facet]),
+            }
+        return self._cache["segments"]
+
+    def _cells(self) -> dict[str, np.ndarray]:
+        """Per grid cell, the facets that face one of its corners and are not fully visible
+        from all three, with their points' bits at the three corners (cached).
+
+        ``cell_start`` (cells + 1), ``entry_facet`` (E) in cell order; ``entry_word`` (E):
+        first row of the entry's block of ``cell_words`` (S_cells, 3), one row per segment of
+        the facet (the segment's bits at each corner, masked to the segment). A lookup then
+        reads two cells' entries, each a contiguous run, instead of six scattered rows.
+        """
+        if "cells" not in self._cache:
+            seg = self._segments()
+            start, k = seg["segment_start"], self.n_facets
+            full_words = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
+            _kernels().full_flags(
+                self.bits,
+                start,
+                seg["segment_word"],
+                seg["segment_mask"],
+                full_words,
+            )
+            full = np.unpackbits(full_words.view(np.uint8), axis=1, bitorder="little")[:, :k]
+            front = self.grid.directions @ self.normals.T > 0.0
+            corners = self._cell_corners()
+            partial = (full[corners[:, 0]] & full[corners[:, 1]] & full[corners[:, 2]]) == 0
+            partial &= front[corners[:, 0]] | front[corners[:, 1]] | front[corners[:, 2]]
+            cell, facet = np.nonzero(partial)
+            count = np.diff(start)[facet]
+            entry_word = np.cumsum(count) - count
+            row = np.repeat(np.arange(len(facet)), count)
+            segment = np.repeat(start[facet], count) + np.arange(count.sum()) - entry_word[row]
+            nodes = corners[cell[row]]
+            words = self.bits[nodes, seg["segment_word"][segment, None]]
+            self._cache["cells"] = {
+                "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
+                "entry_facet": facet.astype(np.int32),
+                "entry_word": entry_word.astype(np.int64),
+                "cell_words": np.ascontiguousarray(words & seg["segment_mask"][segment, None]),
+            }
+        return self._cache["cells"]
+
+    def _cell_entries(self, order: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`_cells` with one entry per output column of ``order`` (and each corner's
+        visible fraction of the facet precomputed: the one-sided case is three products)."""
+        cells, seg = self._cells(), self._segments()
+        used = np.flatnonzero(order >= 0)
+        columns = used[np.argsort(order[used], kind="stable")]
+        per_facet = np.bincount(order[used], minlength=self.n_facets)
+        first_column = np.cumsum(per_facet) - per_facet
+        facet = cells["entry_facet"]
+        count = per_facet[facet]
+        source = np.repeat(np.arange(len(facet)), count)
+        step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        entry_facet = np.ascontiguousarray(facet[source])
+        entry_word = np.ascontiguousarray(cells["entry_word"][source])
+        start = cells["cell_start"]
+        entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
+        value = np.empty((len(source), 4))
+        _kernels().cell_fractions(
+            cells["cell_words"],
+            entry_word,
+            entry_facet,
+            seg["segment_start"],
+            seg["segment_weight"],
+            value[:, :3],
+        )
+        value[:, 3] = columns[first_column[entry_facet] + step]
+        return {
+            "cell_start": np.searchsorted(entry_cell[source], np.arange(len(start))).astype(
+                np.int64
+            ),
+            "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
+            "entry_value": value,
+            "entry_facet": entry_facet,
+            "entry_word": entry_word,
+            "cell_words": cells["cell_words"],
+            "facet_segment_start": seg["segment_start"],
+            "facet_segment_weight": seg["segment_weight"],
+        }
 
     def _segment_masks(self) -> np.ndarray:
         """(S,) uint64 bits of each segment within its word."""
@@ -265,26 +351,6 @@ class VisibilityTable:
         lower = np.stack([ni[:, :-1, :-1], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
         upper = np.stack([ni[:, 1:, 1:], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
         return np.stack([lower, upper], axis=3).reshape(-1, 3)
-
-    def _sparse_rows(self) -> dict[str, np.ndarray]:
-        """The bit rows without their all-ones words (cached): ``row_words`` flags the
-        stored words of each row, ``row_rank`` indexes ``compact`` per 64-word chunk.
-
-        The lookups of a row then touch a few cache lines instead of a whole row."""
-        if "sparse" not in self._cache:
-            d, w = self.bits.shape
-            used = np.zeros(w, np.uint64)
-            np.bitwise_or.at(used, self.layout["segment_word"], self._segment_masks())
-            stored = np.zeros((d, 64 * -(-w // 64)), dtype=bool)
-            stored[:, :w] = (self.bits & used) != used
-            per_chunk = stored.reshape(d, -1, 64).sum(axis=2).reshape(-1)
-            rank = (np.cumsum(per_chunk) - per_chunk).reshape(d, -1)
-            self._cache["sparse"] = {
-                "row_words": _bit_rows(stored),
-                "row_rank": rank.astype(np.int64),
-                "compact": np.append(self.bits[stored[:, :w]], np.uint64(2**64 - 1)),
-            }
-        return self._cache["sparse"]
 
     def interpolate(self, directions: Any) -> Any:
         """Visible fractions of all effective facets for arbitrary body-frame directions.
@@ -353,9 +419,12 @@ class VisibilityTable:
             barycentric weights (the bits are constants).
         """
         lookup = self._lookup(order)
-        if _is_tensor(light) or _is_tensor(view):
-            return self._joint_torch(light, view, lookup, facing)
-        light, view = _as_float_array(light), _as_float_array(view)
+        if not (isinstance(light, np.ndarray) and isinstance(view, np.ndarray)):
+            if _is_tensor(light) or _is_tensor(view):
+                return self._joint_torch(light, view, lookup, facing)
+            light, view = _as_float_array(light), _as_float_array(view)
+        if light.dtype not in _FLOATS or view.dtype not in _FLOATS:
+            light, view = _as_float_array(light), _as_float_array(view)
         if light.shape != view.shape or light.shape[-1:] != (3,):
             raise ValueError(
                 f"light and view must have the same shape (..., 3), got {light.shape} and "
@@ -374,17 +443,15 @@ class VisibilityTable:
             lookup["rotation"],
             self.resolution,
             lookup["flat_index"],
-            lookup["row_words"],
-            lookup["row_rank"],
-            lookup["compact"],
-            lookup["cell_partial"],
-            lookup["cell_front"],
-            lookup["cell_hidden"],
+            lookup["cell_start"],
+            lookup["cell_word_start"],
+            lookup["entry_value"],
+            lookup["entry_facet"],
+            lookup["entry_word"],
+            lookup["cell_words"],
+            lookup["facet_segment_start"],
+            lookup["facet_segment_weight"],
             lookup["normals"],
-            lookup["segment_start"],
-            lookup["segment_word"],
-            lookup["segment_mask"],
-            lookup["segment_weight"],
             facing,
             result,
         )
@@ -501,11 +568,6 @@ class VisibilityTable:
             raise ShapeError(f"{path}: {exc}") from None
         except (OSError, KeyError, ValueError, IndexError, TypeError) as exc:
             raise ShapeError(f"{path}: not a readable visibility table ({exc})") from None
-
-
-def _bit_rows(flags: np.ndarray) -> np.ndarray:
-    """(N, 64 C) bool → (N, C) uint64, flag ``j`` as bit ``j % 64`` of word ``j // 64``."""
-    return np.packbits(flags, axis=1, bitorder="little").view("<u8").astype(np.uint64)
 
 
 def _kernels() -> Any:
