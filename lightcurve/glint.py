@@ -287,7 +287,7 @@ def _baseline(
     baseline = np.empty_like(mag)
     variance = np.empty_like(mag)
     keep = np.ones(len(mag), dtype=bool)
-    scale = 1.0
+    scale, dof = 1.0, MAD_EFFICIENCY * len(mag)
     segments = [np.flatnonzero(ids == label) for label in np.unique(ids)]
     for iteration in range(iterations):
         for rows in segments:
@@ -302,8 +302,8 @@ def _baseline(
         scale = spread / _clipped_mad(CLIP_SIGMA if iteration else math.inf)
         if not scale > 0:
             scale = 1.0
+        dof = MAD_EFFICIENCY * float(np.sum(variance[keep]))
         keep = ~_widen(standard > CLIP_SIGMA * scale)
-    dof = MAD_EFFICIENCY * float(np.sum(variance[keep]))
     return _Fit(baseline, variance, scale, dof)
 
 
