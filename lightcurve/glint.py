@@ -12,13 +12,17 @@ the night, Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications"
 ``degree=1`` is the running straight line) fitted over ``window_s`` with tricube weights,
 with iterative clipping of brightenings above 3σ, so the flashes themselves do not pull it
 up (where clipping takes most of one side of a window, the fit there is a straight line, so
-the polynomial does not swing across the gap); the scatter is estimated robustly,
-``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
-baseline by ``z σ √(1 + h_i)`` (``h_i`` the leverage of the point in its local fit), with
-``z`` chosen so that a light curve of N points of pure Gaussian noise shows any such point
-with probability ``false_alarm``: ``z = Φ⁻¹(1 − false_alarm/N)`` (Bonferroni). Consecutive
-candidates form one glint, whose epoch comes from a Gaussian fit to the flash profile (with
-its 1σ error).
+the polynomial does not swing across the gap). Each residual ``r_i`` (baseline − magnitude)
+has its own variance ``σ² e_i² v_i``, ``v_i = 1 − 2 l_ii + Σ_j l_ij² (e_j/e_i)²`` (``l_ij`` the
+smoother's weights, ``e_i`` the ``mag_err``; Cleveland & Devlin 1988): below 1 where a point
+pulls its own fit, most near the ends of a curve, above 1 where it was clipped from it. The
+scatter σ is the MAD of the kept residuals each divided by ``e_i √v_i``, scaled by the MAD
+of a unit normal cut above at the clipping level. A point is a flash candidate when it is
+brighter than the baseline by ``z σ e_i √v_i``, with ``z`` chosen so that a light curve of N
+points of pure Gaussian noise shows any such point with probability at most
+``false_alarm``: the Student-t quantile at ``false_alarm/N`` (Bonferroni) with the degrees of
+freedom of the MAD (:func:`detection_threshold`). Consecutive candidates form one glint,
+whose epoch comes from a Gaussian fit to the flash profile (with its 1σ error).
 """
 
 from __future__ import annotations
