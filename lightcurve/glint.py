@@ -273,7 +273,7 @@ def _baseline(
 
     The scatter is estimated on the residuals each divided by its own standard deviation
     ``e_i √v_i`` (:func:`_local_fit`): near the ends of a curve a local fit follows its own
-    point more closely (``v_i`` down to ≈ 0.8 for the cubic), and a MAD of the raw residuals
+    point more closely (``v_i`` down to ≈ 0.7 for the cubic), and a MAD of the raw residuals
     would mix those with the interior ones and underestimate σ there. The MAD of the kept
     points, a normal sample cut above at ``CLIP_SIGMA`` σ, is scaled by the MAD of that
     truncated normal (:func:`_clipped_mad`) instead of the untruncated ``0.6745``.
