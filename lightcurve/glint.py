@@ -12,24 +12,30 @@ the night, Fan & Gijbels 1996, "Local Polynomial Modelling and Its Applications"
 ``degree=1`` is the running straight line) fitted over ``window_s`` with tricube weights,
 with iterative clipping of brightenings above 3σ, so the flashes themselves do not pull it
 up (where clipping takes most of one side of a window, the fit there is a straight line, so
-the polynomial does not swing across the gap); the scatter is estimated robustly,
-``σ = 1.4826 · MAD``. A point is a flash candidate when it is brighter than the
-baseline by ``z σ √(1 + h_i)`` (``h_i`` the leverage of the point in its local fit), with
-``z`` chosen so that a light curve of N points of pure Gaussian noise shows any such point
-with probability ``false_alarm``: ``z = Φ⁻¹(1 − false_alarm/N)`` (Bonferroni). Consecutive
-candidates form one glint, whose epoch comes from a Gaussian fit to the flash profile (with
-its 1σ error).
+the polynomial does not swing across the gap). Each residual ``r_i`` (baseline − magnitude)
+has its own variance ``σ² e_i² v_i``, ``v_i = 1 − 2 l_ii + Σ_j l_ij² (e_j/e_i)²`` (``l_ij`` the
+smoother's weights, ``e_i`` the ``mag_err``; Cleveland & Devlin 1988): below 1 where a point
+pulls its own fit, most near the ends of a curve, above 1 where it was clipped from it. The
+scatter σ is the MAD of the kept residuals each divided by ``e_i √v_i``, scaled by the MAD
+of a unit normal cut above at the clipping level. A point is a flash candidate when it is
+brighter than the baseline by ``z σ e_i √v_i``, with ``z`` chosen so that a light curve of N
+points of pure Gaussian noise shows any such point with probability at most
+``false_alarm``: the Student-t quantile at ``false_alarm/N`` (Bonferroni) with the degrees of
+freedom of the MAD (:func:`detection_threshold`). Consecutive candidates form one glint,
+whose epoch comes from a Gaussian fit to the flash profile (with its 1σ error).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import OptimizeWarning, curve_fit
+from scipy.optimize import OptimizeWarning, brentq, curve_fit
+from scipy.stats import norm
 from scipy.stats import t as student_t
 
 from filters.attitude import rotate
@@ -47,6 +53,8 @@ __all__ = [
 ]
 
 SECONDS_PER_DAY = 86400.0
+MAD_EFFICIENCY = 0.37  # asymptotic efficiency of the MAD for Gaussian noise
+CLIP_SIGMA = 3.0  # brightenings above this many σ leave the baseline's fit
 
 
 @dataclass
@@ -115,6 +123,19 @@ class GlintDetection:
     excess_sigma: np.ndarray = field(default=None, repr=False)
     """Brightening of every point above the baseline in units of its σ (the detector fires
     where it exceeds ``threshold_sigma``)."""
+    dof: float | None = None
+    """Degrees of freedom of the scatter estimate (``detection_threshold(FA, N, dof=dof)``
+    gives the threshold at any other level FA)."""
+
+
+@dataclass
+class _Fit:
+    """Baseline of a light curve and the statistics of its residuals (see :func:`_baseline`)."""
+
+    baseline: np.ndarray
+    variance: np.ndarray
+    scale: float
+    dof: float
 
 
 def detect_glints(
@@ -170,32 +191,64 @@ def detect_glints(
     if np.any(~(errors > 0)):
         row = int(np.flatnonzero(~(errors > 0))[0])
         raise ValueError(f"mag_err must be positive (row {row}: {errors[row]})")
-    baseline, leverage, scale = _baseline(times, mag, errors, ids, window, degree)
-    noise = scale * errors * np.sqrt(1.0 + leverage)
-    residual = baseline - mag  # > 0: brighter than the baseline
-    z = detection_threshold(false_alarm, len(mag))
+    fit = _baseline(times, mag, errors, ids, window=window, degree=degree)
+    noise = fit.scale * errors * np.sqrt(fit.variance)
+    residual = fit.baseline - mag  # > 0: brighter than the baseline
+    z = detection_threshold(false_alarm, len(mag), dof=fit.dof)
     excess_sigma = residual / noise
     candidate = excess_sigma > z
     glints = []
     sun, observer = observations.sun_vectors, observations.observer_vectors
-    typical = float(np.median(scale * errors))
+    typical = float(np.median(fit.scale * errors))
     for rows in _runs(candidate, ids, times, 2.5 * cadence):
         glints.append(
-            _describe(rows, times, residual, typical, sun, observer, observations.mjd, cadence)
+            _describe(
+                rows,
+                times,
+                residual,
+                noise=typical,
+                sun=sun,
+                observer=observer,
+                mjd=observations.mjd,
+                cadence=cadence,
+            )
         )
-    return GlintDetection(glints, z, typical, false_alarm, window, baseline, degree, excess_sigma)
+    return GlintDetection(
+        glints,
+        z,
+        typical,
+        false_alarm,
+        window,
+        fit.baseline,
+        degree,
+        excess_sigma,
+        fit.dof,
+    )
 
 
-def detection_threshold(false_alarm: float, n: int) -> float:
+def detection_threshold(false_alarm: float, n: int, dof: float | None = None) -> float:
     """Per-point threshold (in σ) giving a per-curve false-alarm probability ≤ ``false_alarm``.
 
     Bonferroni: each of the ``n`` points may exceed it with probability ``false_alarm/n``.
     The scatter is itself estimated (by the MAD, of asymptotic efficiency 0.37 for Gaussian
-    noise: ``var(σ̂)/σ² ≈ 1/(2 · 0.37 n)``), so the quantile is Student's t with
-    ``ν = 0.37 n`` degrees of freedom rather than the normal one.
+    noise: ``var(σ̂)/σ² ≈ 1/(2 · 0.37 n)``, Rousseeuw & Croux 1993, "Alternatives to the
+    median absolute deviation", JASA 88, 1273), so the quantile is Student's t with ``dof``
+    degrees of freedom rather than the normal one.
+
+    Parameters
+    ----------
+    false_alarm : float
+        Per-curve false-alarm probability.
+    n : int
+        Number of points tested.
+    dof : float, optional
+        Degrees of freedom of the scatter estimate; default ``0.37 n`` (the MAD of ``n``
+        independent residuals). :func:`detect_glints` passes ``0.37 δ₁``, with ``δ₁`` the
+        residual degrees of freedom of its baseline (:attr:`GlintDetection.dof`).
     """
-    dof = max(0.37 * n, 3.0)
-    return float(student_t.isf(false_alarm / n, dof))
+    if dof is None:
+        dof = MAD_EFFICIENCY * n
+    return float(student_t.isf(false_alarm / n, max(float(dof), 3.0)))
 
 
 def _baseline(
@@ -203,10 +256,11 @@ def _baseline(
     mag: np.ndarray,
     errors: np.ndarray,
     ids: np.ndarray,
+    *,
     window: float,
     degree: int,
     iterations: int = 4,
-) -> tuple[np.ndarray, np.ndarray, float]:
+) -> _Fit:
     """Local polynomial (LOESS) baseline with brightenings above 3σ clipped.
 
     Every point gets a weighted least-squares polynomial of ``degree`` in time over
@@ -217,33 +271,63 @@ def _baseline(
     curvature of a curve fading towards the terminator; at the ends and beside gaps it
     extrapolates the local polynomial (a running median does not).
 
+    The scatter is estimated on the residuals each divided by its own standard deviation
+    ``e_i √v_i`` (:func:`_local_fit`): near the ends of a curve a local fit follows its own
+    point more closely (``v_i`` down to ≈ 0.7 for the cubic), and a MAD of the raw residuals
+    would mix those with the interior ones and underestimate σ there. The MAD of the kept
+    points, a normal sample cut above at ``CLIP_SIGMA`` σ, is scaled by the MAD of that
+    truncated normal (:func:`_clipped_mad`) instead of the untruncated ``0.6745``.
+
     Returns
     -------
-    baseline : (N,) float
-    leverage : (N,) float
-        ``Σ_j l_ij² (e_i/e_j)²``: variance of the baseline at point i in units of
-        ``(scale · e_i)²`` (``l_ij`` the smoother's weights).
-    scale : float
-        Robust scatter (1.4826 MAD) of the unclipped residuals in units of ``mag_err``.
+    _Fit
+        ``baseline`` (N,); ``variance`` (N,): variance of each residual ``baseline − mag``
+        in units of ``(scale · e_i)²``; ``scale``: robust scatter of the residuals in units
+        of ``mag_err``; ``dof``: degrees of freedom of ``scale``, ``0.37 δ₁`` with
+        ``δ₁ = Σ_kept v_i`` the residual degrees of freedom of the kept points (Cleveland &
+        Devlin 1988, "Locally weighted regression: an approach to regression analysis by
+        local fitting", JASA 83, 596).
     """
     baseline = np.empty_like(mag)
-    leverage = np.empty_like(mag)
+    variance = np.empty_like(mag)
     keep = np.ones(len(mag), dtype=bool)
-    scale = 1.0
+    scale, dof = 1.0, MAD_EFFICIENCY * len(mag)
     segments = [np.flatnonzero(ids == label) for label in np.unique(ids)]
-    for _ in range(iterations):
+    for iteration in range(iterations):
         for rows in segments:
-            baseline[rows], leverage[rows] = _local_fit(
-                times[rows], mag[rows], errors[rows], keep[rows], window, degree
+            baseline[rows], variance[rows] = _local_fit(
+                times[rows], mag[rows], errors[rows], keep[rows], window=window, degree=degree
             )
-        standard = (baseline - mag) / errors
+        standard = (baseline - mag) / (errors * np.sqrt(variance))
         inliers = standard[keep]
-        scale = 1.4826 * float(np.median(np.abs(inliers - np.median(inliers))))
+        spread = float(np.median(np.abs(inliers - np.median(inliers))))
+        # The first pass keeps every point; later ones keep a sample cut above at the
+        # clipping level (in units of the previous scale).
+        scale = spread / _clipped_mad(CLIP_SIGMA if iteration else math.inf)
         if not scale > 0:
             scale = 1.0
-        flagged = standard > 3.0 * scale * np.sqrt(1.0 + leverage)
-        keep = ~_widen(flagged)
-    return baseline, leverage, scale
+        dof = MAD_EFFICIENCY * float(np.sum(variance[keep]))
+        keep = ~_widen(standard > CLIP_SIGMA * scale)
+    return _Fit(baseline, variance, scale, dof)
+
+
+@functools.lru_cache(maxsize=8)
+def _clipped_mad(clip: float) -> float:
+    """Median absolute deviation (about the median) of a unit normal cut above at ``clip``.
+
+    ``0.6745`` (= 1/1.4826) for ``clip = ∞``; the standard normal truncated to
+    ``(−∞, clip]`` has median ``m = Φ⁻¹(Φ(clip)/2)`` and MAD ``d`` solving
+    ``Φ(min(m + d, clip)) − Φ(m − d) = Φ(clip)/2``.
+    """
+    if not math.isfinite(clip):
+        return float(norm.ppf(0.75))
+    mass = float(norm.cdf(clip))
+    median = float(norm.ppf(0.5 * mass))
+
+    def excess(d: float) -> float:
+        return float(norm.cdf(min(median + d, clip)) - norm.cdf(median - d)) - 0.5 * mass
+
+    return float(brentq(excess, 1e-9, clip - median + 10.0))
 
 
 def _widen(flagged: np.ndarray) -> np.ndarray:
@@ -270,12 +354,18 @@ def _local_fit(
     y: np.ndarray,
     e: np.ndarray,
     keep: np.ndarray,
+    *,
     window: float,
     degree: int,
     block_size: int = 2_000_000,
     fallback_degree: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Value and variance factor of the local polynomial fit at every point of one curve.
+    """Value of the local polynomial fit at every point of one curve, and its residual variance.
+
+    The residual ``r_i = y_i − Σ_j l_ij y_j`` (``l_ij`` the smoother's weights, ``l_ii = 0``
+    for a clipped point) has variance ``e_i² v_i`` with
+    ``v_i = 1 − 2 l_ii + Σ_j l_ij² (e_j/e_i)²`` (Cleveland & Devlin 1988): below 1 where the
+    point pulls its own fit (most at the ends of a curve), above 1 where the fit leaves it out.
 
     Vectorised over (points × window neighbours), in blocks of at most ``block_size`` pairs.
     The normal equations are solved by pseudo-inverse (a degenerate window gives the
@@ -292,6 +382,7 @@ def _local_fit(
     powers = np.arange(degree + 1)
     value = np.empty(len(t))
     variance = np.empty(len(t))
+    own = np.empty(len(t))
     support = np.empty(len(t), dtype=int)
     two_sided = np.empty(len(t), dtype=bool)
     step = max(1, block_size // width)
@@ -321,6 +412,7 @@ def _local_fit(
         smoother = w * np.einsum("nkp,np->nk", design, first_row)  # l_ij
         value[i] = np.einsum("nk,nk->n", smoother, y[j])
         variance[i] = np.einsum("nk,nk->n", smoother**2, (e[j] / e[i, None]) ** 2)
+        own[i] = np.sum(np.where(inside & (j == i[:, None]), smoother, 0.0), axis=1)
         used = w > 0
         support[i] = np.count_nonzero(used, axis=1)
         two_sided[i] = np.any(used & (u < 0), axis=1) & np.any(used & (u > 0), axis=1)
@@ -334,9 +426,11 @@ def _local_fit(
             "anywhere in the light curve; give a longer window_s"
         )
     if not np.all(valid):
+        # A bridged baseline comes from the neighbours' fits: its own point is (nearly) left out.
         value = np.where(valid, value, np.interp(t, t[valid], value[valid]))
         variance = np.where(valid, variance, np.interp(t, t[valid], variance[valid]))
-    return value, variance
+        own = np.where(valid, own, 0.0)
+    return value, 1.0 - 2.0 * own + variance
 
 
 def _runs(mask: np.ndarray, ids: np.ndarray, times: np.ndarray, gap: float) -> list[np.ndarray]:
@@ -352,7 +446,17 @@ def _gaussian(t: np.ndarray, amplitude: float, center: float, width: float) -> n
     return amplitude * np.exp(-0.5 * ((t - center) / width) ** 2)
 
 
-def _describe(rows, times, residual, noise, sun, observer, mjd, cadence) -> Glint:
+def _describe(
+    rows: np.ndarray,
+    times: np.ndarray,
+    residual: np.ndarray,
+    *,
+    noise: float,
+    sun: np.ndarray,
+    observer: np.ndarray,
+    mjd: np.ndarray,
+    cadence: float,
+) -> Glint:
     """Epoch, amplitude and PAB of one flash (Gaussian profile fit around its points)."""
     peak = rows[np.argmax(residual[rows])]
     lo, hi = max(rows[0] - len(rows) - 2, 0), min(rows[-1] + len(rows) + 3, len(times))

@@ -10,7 +10,14 @@ from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix, rotate
 from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.geometry import phase_angle_bisector
-from lightcurve.glint import Glint, detect_glints, glint_period, panel_normal
+from lightcurve.glint import (
+    Glint,
+    _clipped_mad,
+    _local_fit,
+    detect_glints,
+    glint_period,
+    panel_normal,
+)
 from lightcurve.observations import Observations, datetime_to_mjd, validate_table
 from lightcurve.simulate import GaussianNoise, simulate
 from shapes import Material, primitives
@@ -233,3 +240,49 @@ def test_detection_options_are_checked():
     with pytest.raises(ValueError, match="max_flash_s"):
         detect_glints(obs, max_flash_s=-1.0)
     assert detect_glints(obs, max_flash_s=600.0).window_s == 2400.0
+
+
+def test_residual_variance_is_that_of_the_smoother_matrix():
+    """The residual variance factor ``v_i`` of the local fit equals ``Σ_j (δ_ij − l_ij)²
+    (e_j/e_i)²`` with the smoother matrix ``l`` probed column by column (the fit is linear
+    in the magnitudes), for unequal errors and with clipped points left out of the fits."""
+    rng = np.random.default_rng(4)
+    n = 90
+    t = np.cumsum(rng.uniform(40.0, 80.0, n))
+    e = rng.uniform(0.01, 0.04, n)
+    keep = np.ones(n, dtype=bool)
+    keep[[30, 31, 55]] = False
+    smoother = np.column_stack(
+        [_local_fit(t, np.eye(n)[k], e, keep, window=1500.0, degree=3)[0] for k in range(n)]
+    )
+    _, variance = _local_fit(t, rng.normal(size=n), e, keep, window=1500.0, degree=3)
+    expected = np.sum(((np.eye(n) - smoother) * e[None, :] / e[:, None]) ** 2, axis=1)
+    np.testing.assert_allclose(variance, expected, rtol=1e-9)
+    assert np.all(variance[keep] < 1.0) and np.all(variance[~keep] > 1.0)
+    assert variance[0] < np.median(variance[keep]) - 0.05  # a point pulls its fit most at an end
+
+
+@pytest.mark.parametrize("clip", [0.5, 1.5, 3.0])
+def test_mad_of_the_clipped_normal_matches_a_clipped_sample(clip):
+    sample = np.random.default_rng(8).normal(size=400_000)
+    sample = sample[sample <= clip]
+    mad = np.median(np.abs(sample - np.median(sample)))
+    assert abs(_clipped_mad(clip) - mad) < 0.004
+    assert _clipped_mad(math.inf) == pytest.approx(0.674489750, abs=1e-9)
+
+
+def test_residual_scatter_is_calibrated_at_the_ends_and_inside():
+    """Pure noise (known σ): the brightenings in units of the detector's per-point σ, times its
+    scatter estimate over the true σ, have unit spread within a tenth of the window of either
+    end (where each point pulls its own fit most) and in the middle half of the curve."""
+    rng = np.random.default_rng(7)
+    ends, middle = [], []
+    for _ in range(30):
+        table = _noise_curve(rng, n=400).table
+        curve = Observations(table.assign(mag=11.0 + rng.normal(0.0, 0.02, 400)), {})
+        detection = detect_glints(curve)
+        z = detection.excess_sigma * detection.noise_mag / 0.02
+        ends.append(np.r_[z[:10], z[-10:]])
+        middle.append(z[100:300])
+    assert 0.92 < np.std(np.concatenate(ends)) < 1.08
+    assert 0.97 < np.std(np.concatenate(middle)) < 1.03
