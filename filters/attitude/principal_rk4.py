@@ -7,10 +7,9 @@ those of the array kernel to the last bit, and those of the attitude core's
 :func:`~filters.attitude.rk4_step` to rounding). The array kernel pays numpy's per-call
 overhead on every one of the ~100 element-wise operations of a step, which dominated the
 global search's propagation; here a step costs ~100 floating-point operations. The kernel
-also turns every state back into the body frame as it writes it, in the states × epochs ×
-components layout the callers use: done as separate array passes over the (components,
-epochs, states) output, that was as costly as the integration itself (a search window of
-3 000 states × 90 epochs: 35 ms of CPU before, 22 ms now, the same bits).
+also turns every state back into the body frame as it writes it: done as separate array
+passes over the output, that was as costly as the integration itself (a search window of
+3 000 states × 90 epochs: 35 ms of CPU before, 24 ms now, the same bits).
 
 Compiled once per machine (``cache=True``); states are independent, so the loop over them
 releases the GIL.
@@ -89,13 +88,13 @@ def _run(q, w, p, back, frame, offsets, sequence, bounds, max_step, q_out, w_out
                 t = offsets[i]
                 # Back in the body frame, q = r⁻¹ ⊗ q_P and ω = P ω_P, in the operation
                 # order of the array kernel (propagation._left_multiply, _mat_vec).
-                q_out[j, i, 0] = r3 * q0 + r0 * q3 - r1 * q2 + r2 * q1
-                q_out[j, i, 1] = r3 * q1 + r1 * q3 - r2 * q0 + r0 * q2
-                q_out[j, i, 2] = r3 * q2 + r2 * q3 - r0 * q1 + r1 * q0
-                q_out[j, i, 3] = r3 * q3 - r0 * q0 - r1 * q1 - r2 * q2
-                w_out[j, i, 0] = m[0] * w0 + m[1] * w1 + m[2] * w2
-                w_out[j, i, 1] = m[3] * w0 + m[4] * w1 + m[5] * w2
-                w_out[j, i, 2] = m[6] * w0 + m[7] * w1 + m[8] * w2
+                q_out[0, i, j] = r3 * q0 + r0 * q3 - r1 * q2 + r2 * q1
+                q_out[1, i, j] = r3 * q1 + r1 * q3 - r2 * q0 + r0 * q2
+                q_out[2, i, j] = r3 * q2 + r2 * q3 - r0 * q1 + r1 * q0
+                q_out[3, i, j] = r3 * q3 - r0 * q0 - r1 * q1 - r2 * q2
+                w_out[0, i, j] = m[0] * w0 + m[1] * w1 + m[2] * w2
+                w_out[1, i, j] = m[3] * w0 + m[4] * w1 + m[5] * w2
+                w_out[2, i, j] = m[6] * w0 + m[7] * w1 + m[8] * w2
 
 
 def body_chains(
@@ -131,14 +130,16 @@ def body_chains(
 
     Returns
     -------
-    q : (M, E, 4), w : (M, E, 3) numpy.ndarray
+    q : (4, E, M), w : (3, E, M) numpy.ndarray
+        Component-first, the layout of the array kernel's output (callers see the
+        transposed view, whose strides decide how later array operations round).
     """
     offsets = np.asarray(offsets, dtype=float)
     order = np.argsort(offsets, kind="stable")
     forwards = order[offsets[order] >= 0]
     backwards = order[offsets[order] < 0][::-1]
-    q_out = np.empty((q.shape[1], len(offsets), 4))
-    w_out = np.empty((q.shape[1], len(offsets), 3))
+    q_out = np.empty((4, len(offsets), q.shape[1]))
+    w_out = np.empty((3, len(offsets), q.shape[1]))
     _run(
         np.ascontiguousarray(q, dtype=float),
         np.ascontiguousarray(w, dtype=float),
