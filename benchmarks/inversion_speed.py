@@ -62,12 +62,7 @@ def _run_job(job: str, seed: int) -> dict[str, Any]:
     import numpy as np
     import torch
 
-    from benchmarks.inversion_study import (
-        Scenario,
-        draw_truth,
-        final_errors,
-        simulate_run,
-    )
+    from benchmarks.inversion_study import Scenario, draw_truth, simulate_run
     from lightcurve import io
     from lightcurve.inversion import invert, shape_symmetry
     from shapes import get_library
@@ -88,17 +83,27 @@ def _run_job(job: str, seed: int) -> dict[str, Any]:
     wall, cpu = time.perf_counter(), time.process_time()
     result = invert(observations, shapes, method=method)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    errors = final_errors(result, observations, shape_symmetry(shapes[truth]))
+    group = shape_symmetry(shapes[truth])
     return {
         "job": job,
         "epochs": len(observations),
         "cpu_s": cpu,
         "wall_s": wall,
+        **summary(result, observations, group),
+    }
+
+
+def summary(result: Any, observations: Any, group: Any) -> dict[str, Any]:
+    """Shape, its probability, ``none_fits``, residual rms and the errors against the
+    truth columns (:func:`benchmarks.inversion_study.final_errors`) of an inversion."""
+    from benchmarks.inversion_study import final_errors
+
+    return {
         "shape": result.shape,
         "probability": result.shape_probabilities[result.shape],
         "none_fits": result.none_fits,
         "residual_rms_mag": result.residual_rms_mag,
-        **errors,
+        **final_errors(result, observations, group),
     }
 
 
