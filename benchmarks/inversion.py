@@ -118,7 +118,7 @@ def speed(particles: list[int], updates: int, seed: int, components: int = 12) -
 def main_job(files: list[str]) -> dict:
     """The README main job file by file in this process (one torch thread): CPU and wall
     time, shape, probability and the errors against the files' truth columns."""
-    from benchmarks.inversion_study import final_errors
+    from benchmarks.inversion_speed import summary
     from lightcurve import io
     from lightcurve.inversion import invert, shape_symmetry
 
@@ -133,18 +133,9 @@ def main_job(files: list[str]) -> dict:
         result = invert(observations, shapes, method="mmae")
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         truth = observations.meta["shape"]
-        errors = final_errors(result, observations, shape_symmetry(shapes[truth]))
+        group = shape_symmetry(shapes[truth])
         rows.append(
-            {
-                "file": name,
-                "cpu_s": cpu,
-                "wall_s": wall,
-                "shape": result.shape,
-                "probability": result.shape_probabilities[result.shape],
-                "none_fits": result.none_fits,
-                "residual_rms_mag": result.residual_rms_mag,
-                **errors,
-            }
+            {"file": name, "cpu_s": cpu, "wall_s": wall, **summary(result, observations, group)}
         )
     return {"study": "main-job", "rows": rows}
 

@@ -446,17 +446,19 @@ def _trajectory(
     q_c = _left_multiply(r, _components(q, batch, xp))
     w_c = _components(omega, batch, xp)
     w_c = _mat_vec(frame[[0, 3, 6, 1, 4, 7, 2, 5, 8]], w_c)
-    if xp is not _NUMPY_NAMESPACE:  # torch (autograd, GPU): one block, stacked
+    back = xp.concat([-r[:3], r[3:]])
+    if xp is _NUMPY_NAMESPACE:  # the compiled chains write body-frame (c, E, M) states
+        from filters.attitude.principal_rk4 import body_chains
+
+        q_out, w_out = body_chains(q_c, w_c, p, back, frame, offsets, max_step)
+    else:  # torch (autograd, GPU): one block, stacked
         states = _chains(q_c, w_c, p, offsets, max_step)
         q_p = xp.stack([s[0] for s in states], axis=1)
         w_p = xp.stack([s[1] for s in states], axis=1)
-    else:
-        from filters.attitude.principal_rk4 import principal_chains
-
-        q_p, w_p = principal_chains(q_c, w_c, p, offsets, max_step)
-    # (c, E, M), back in the body frame (q = r⁻¹ ⊗ q_P, ω = P ω_P), then (..., E, c).
-    q_out = _left_multiply(xp.concat([-r[:3], r[3:]]), q_p)
-    w_out = _mat_vec(frame, w_p)
+        # (c, E, M), back in the body frame (q = r⁻¹ ⊗ q_P, ω = P ω_P).
+        q_out = _left_multiply(back, q_p)
+        w_out = _mat_vec(frame, w_p)
+    # (..., E, c): a transposed view of the component-first arrays
     return _from_components(q_out, batch, xp), _from_components(w_out, batch, xp)
 
 

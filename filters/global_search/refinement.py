@@ -54,6 +54,10 @@ def residual_jacobian(
     ``δq`` of the attitude is the rotation ``δθ = 2 vec(δq ⊗ q⁻¹)``. With a prior, its
     whitened residuals (6 more rows, Jacobian ``diag(1/σ)``) are appended.
 
+    Every candidate's values depend on its own state only (the propagation and the
+    measurement function work row by row), so :func:`refine` evaluates the residuals of
+    all its trial states and the Jacobian of the accepted ones only.
+
     Parameters
     ----------
     problem : BatchProblem
@@ -72,21 +76,68 @@ def residual_jacobian(
     r : (N, E[+6]) tensor
     jacobian : (N, E[+6], p) tensor
     """
+    base = _trajectory(problem, q0, v, shape, epochs, t_start)
+    r = _residuals(problem, q0, v, shape, epochs, base, prior)
+    return r, _jacobian(problem, q0, v, shape, epochs, base, prior=prior, t_start=t_start)
+
+
+def _trajectory(
+    problem: BatchProblem,
+    q0: torch.Tensor,
+    v: torch.Tensor,
+    shape: torch.Tensor,
+    epochs: Any,
+    t_start: float,
+) -> torch.Tensor:
+    """Attitudes ``(N, E, 4)`` of states ``q0 (N, 4)``, ``v = [ω(, k)] (N, p − 3)``."""
+    return problem.trajectory(
+        q0, v[:, :3], v[:, 3:] if v.shape[1] > 3 else None, shape, epochs, t_start
+    )
+
+
+def _residuals(
+    problem: BatchProblem,
+    q0: torch.Tensor,
+    v: torch.Tensor,
+    shape: torch.Tensor,
+    epochs: Any,
+    trajectory: torch.Tensor,
+    prior: Prior | None,
+) -> torch.Tensor:
+    """Normalised residuals of a trajectory ``(N, E, 4)`` (with the prior's whitened
+    deviations of ``q0``, ``ω`` appended), shape (N, E[+6])."""
+    r = problem.residuals_of(trajectory, shape, epochs)
+    if prior is None:
+        return r
+    return torch.cat([r, prior.residuals(q0, v[:, :3])], dim=1)
+
+
+def _jacobian(
+    problem: BatchProblem,
+    q0: torch.Tensor,
+    v: torch.Tensor,
+    shape: torch.Tensor,
+    epochs: Any,
+    base: torch.Tensor,
+    *,
+    prior: Prior | None,
+    t_start: float,
+) -> torch.Tensor:
+    """The Jacobian of :func:`residual_jacobian` given the states' trajectory ``base
+    (N, E, 4)``, shape (N, E[+6], p)."""
     m, d = v.shape
     fd_step = torch.tensor([1e-6] * 3 + [1e-5] * (d - 3), dtype=v.dtype)
-    steps = torch.cat([torch.zeros(1, d, dtype=v.dtype), torch.diag(fd_step)])
-    replicas = (v[:, None] + steps).reshape(-1, d)
-    traj = problem.trajectory(
-        q0.repeat_interleave(len(steps), dim=0),
-        replicas[:, :3],
-        replicas[:, 3:] if d > 3 else None,
-        shape.repeat_interleave(len(steps)),
+    replicas = (v[:, None] + torch.diag(fd_step)).reshape(-1, d)
+    traj = _trajectory(
+        problem,
+        q0.repeat_interleave(d, dim=0),
+        replicas,
+        shape.repeat_interleave(d),
         epochs,
         t_start,
     )
-    traj = traj.reshape(m, len(steps), *traj.shape[1:])
-    base = traj[:, 0]
-    rate_tangent = (traj[:, 1:] - base[:, None]) / fd_step[:, None, None]
+    traj = traj.reshape(m, d, *traj.shape[1:])
+    rate_tangent = (traj - base[:, None]) / fd_step[:, None, None]
     # Attitude columns: δθ_j = vec(Φ ⊗ [e_j, 0] ⊗ Φ⁻¹) = A(Φ) e_j. Rate and inertia columns:
     # δθ = 2 vec(δq ⊗ q⁻¹) = 2 (q₄ δq_v − δq₄ q_v + δq_v × q_v), q = q(t).
     phi = quaternion_multiply(base, quaternion_conjugate(q0)[:, None])
@@ -95,21 +146,19 @@ def residual_jacobian(
     dv, d4 = rate_tangent[..., :3], rate_tangent[..., 3:]
     rate_rotations = 2.0 * (q4 * dv - d4 * qv + torch.linalg.cross(dv, qv.expand_as(dv)))
     rotations = torch.cat([attitude_rotations, rate_rotations], dim=1)
-    r, gradient = _rotation_differences(problem, base, shape, epochs)
+    gradient = _rotation_differences(problem, base, shape, epochs)
     jac = torch.einsum("nje,npej->nep", gradient, rotations)
     if prior is None:
-        return r, jac
+        return jac
     root = torch.sqrt(prior.information(d + 3)[:6]).to(v.dtype)
-    return torch.cat([r, prior.residuals(q0, v[:, :3])], dim=1), torch.cat(
-        [jac, root.expand(m, *root.shape)], dim=1
-    )
+    return torch.cat([jac, root.expand(m, *root.shape)], dim=1)
 
 
 def _rotation_differences(
     problem: BatchProblem, q: torch.Tensor, shape: torch.Tensor, epochs: Any
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Residuals of attitudes ``q (N, E, 4)`` and their central differences with respect to
-    body-frame rotations ``θ`` (``q ← exp(θ) ⊗ q``): ``r (N, E)``, ``∂r/∂θ (N, 3, E)``."""
+) -> torch.Tensor:
+    """Central differences ``∂r/∂θ (N, 3, E)`` of the residuals of attitudes ``q (N, E, 4)``
+    with respect to body-frame rotations ``θ`` (``q ← exp(θ) ⊗ q``)."""
     n = len(q)
     h = float(torch.finfo(q.dtype).eps) ** (1.0 / 3.0)
     axes = h * torch.eye(3, dtype=q.dtype)
@@ -117,9 +166,9 @@ def _rotation_differences(
     # exp(θ) ⊗ q is linear in q: one product with the stacked left-multiplication matrices.
     left = torch.stack([quaternion_multiply(turns, e) for e in torch.eye(4, dtype=q.dtype)], -1)
     probes = (q @ left.reshape(24, 4).T).reshape(*q.shape[:2], 6, 4).permute(0, 2, 1, 3)
-    attitudes = torch.cat([q[:, None], probes], dim=1).reshape(n * 7, *q.shape[1:])
-    r = problem.residuals_of(attitudes, shape.repeat_interleave(7), epochs).reshape(n, 7, -1)
-    return r[:, 0], (r[:, 1:4] - r[:, 4:7]) / (2.0 * h)
+    attitudes = probes.reshape(n * 6, *q.shape[1:])
+    r = problem.residuals_of(attitudes, shape.repeat_interleave(6), epochs).reshape(n, 6, -1)
+    return (r[:, :3] - r[:, 3:]) / (2.0 * h)
 
 
 def refine(
@@ -136,6 +185,12 @@ def refine(
     Jacobians from :func:`residual_jacobian`; each accepted step turns the attitude,
     ``q₀ ← exp(Δη) ⊗ q₀``.
 
+    Every iteration evaluates the residuals of every candidate's trial state (one
+    propagation and one prediction per candidate and epoch) and then linearises the
+    accepted ones only (``p − 3`` more propagations and six more predictions): a rejected
+    step's Jacobian is never used. On the searches of the README main job about a third of
+    the trial steps are rejected.
+
     Parameters
     ----------
     problem : BatchProblem
@@ -144,7 +199,7 @@ def refine(
     epochs : (E,) int array
         Measurement indices of the window.
     iterations : int
-        LM iterations (each one Jacobian pass and one trial evaluation).
+        LM iterations (each one trial evaluation, and a Jacobian pass where accepted).
     damping : float
         Initial Marquardt damping ``μ``.
     prior : Prior, optional
@@ -178,18 +233,27 @@ def refine(
         step = torch.nan_to_num(-torch.linalg.solve(scaled, jtr))
         q_trial = quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), q)
         v_trial = v + step[:, 3:]
-        # The trial point is linearised at once: accepted steps need no second pass.
-        r_trial, jac_trial = residual_jacobian(
-            problem, q_trial, v_trial, shape, epochs, prior=prior, t_start=t_start
-        )
+        base = _trajectory(problem, q_trial, v_trial, shape, epochs, t_start)
+        r_trial = _residuals(problem, q_trial, v_trial, shape, epochs, base, prior)
         chi2_trial = torch.nan_to_num((r_trial * r_trial).sum(dim=1), nan=math.inf)
         better = chi2_trial < chi2
         progress_made = better & (chi2 - chi2_trial > 1e-4 * chi2)
         stalled = 0 if bool(progress_made.any()) else stalled + 1
+        accepted = torch.nonzero(better).flatten()
+        if len(accepted):
+            jac[accepted] = _jacobian(
+                problem,
+                q_trial[accepted],
+                v_trial[accepted],
+                shape[accepted],
+                epochs,
+                base[accepted],
+                prior=prior,
+                t_start=t_start,
+            )
         q = torch.where(better[:, None], q_trial, q)
         v = torch.where(better[:, None], v_trial, v)
         r = torch.where(better[:, None], r_trial, r)
-        jac = torch.where(better[:, None, None], jac_trial, jac)
         chi2 = torch.where(better, chi2_trial, chi2)
         mu = torch.where(better, mu / 3.0, mu * 4.0).clamp(1e-9, 1e9)
         if stalled >= 2:  # no candidate improved by 10⁻⁴ of its χ² twice in a row

@@ -127,6 +127,46 @@ def test_levenberg_marquardt_recovers_the_truth_and_its_covariance(at_end):
     assert k is None
 
 
+def test_refine_linearises_only_accepted_steps_and_returns_the_fit_s_own_jacobian():
+    """Each iteration predicts every trial state once and probes (six predictions) only
+    the accepted ones; the covariance is that of the Jacobian at the returned states."""
+    q0 = random_quaternion((), 11)
+    w0 = np.radians([1.0, -2.0, 1.5])
+    problem = _problem(q0, w0, seconds=60, sigma=0.005)
+    rows = []
+    measure = problem.measure
+
+    def counting(q, epochs, shape):
+        rows.append(q.shape[0])
+        return measure(q, epochs, shape)
+
+    problem.measure = counting
+    n = 13  # no multiple of 6: trial calls (n rows) and probe calls (6 × accepted) differ
+    rng = np.random.default_rng(12)
+    start = Candidates(
+        q=torch.as_tensor(
+            quaternion_multiply(rotation_vector_to_quaternion(rng.normal(0, 0.1, (n, 3))), q0)
+        ),
+        omega=torch.as_tensor(w0 + rng.normal(0, 0.01, (n, 3))),
+        shape=torch.zeros(n, dtype=torch.long),
+    )
+    epochs = np.arange(0, 30, 2)
+    prior = Prior.rates_only(math.radians(5.0))
+    fit = refine(problem, start, epochs, iterations=6, prior=prior)
+    # First linearisation: n states and 6 n probes; then per iteration n trials and
+    # 6 × (accepted) probes, never all 7 n.
+    assert rows[:2] == [n, 6 * n]
+    trials = [r for r in rows[2:] if r == n]
+    probes = [r for r in rows[2:] if r != n]
+    assert 1 <= len(trials) <= 6 and 0 < len(probes) <= len(trials)
+    assert all(p % 6 == 0 for p in probes) and sum(probes) < 6 * n * len(trials)
+    problem.measure = measure
+    r, jac = residual_jacobian(problem, fit.q, fit.omega, fit.shape, epochs, prior=prior)
+    assert torch.allclose(fit.chi2, (r * r).sum(dim=1), rtol=1e-12, atol=0.0)
+    expected = torch.linalg.pinv(jac.transpose(1, 2) @ jac, hermitian=True)
+    assert torch.allclose(fit.covariance, expected, rtol=1e-6, atol=1e-12)
+
+
 def test_every_kind_of_twin_is_refined_and_counted():
     """``twins`` may return several kinds; a kind no candidate has adds nothing."""
     q0 = random_quaternion((), 9)
