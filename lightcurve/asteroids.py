@@ -373,16 +373,3 @@ def itokawa_geometry(mjd: np.ndarray) -> Observations:
         max_magnitude=18.0,
         max_phase_deg=90.0,
     )
-
-
-__all__ += [
-    "ITOKAWA_APPARITIONS",
-    "ITOKAWA_HG",
-    "ITOKAWA_ORBIT",
-    "HeliocentricOrbit",
-    "asteroid_geometry",
-    "earth_heliocentric",
-    "hg_magnitude",
-    "itokawa_geometry",
-    "nightly_epochs",
-]
