@@ -165,7 +165,7 @@ def accuracy(cadence_s: float, points: int) -> dict:
             shape.model, Articulation.from_list(parts, shape.model.group_names, "benchmark")
         )
         start = time.perf_counter()
-        sim = simulate(geometry, model, q0, omega0, shadows="exact")
+        sim = simulate(geometry, model, q0=q0, omega0=omega0, shadows="exact")
         seconds = time.perf_counter() - start
         kept = np.isin(mjd, sim.table["mjd"].to_numpy(float))
         sun, obs = geometry.sun_vectors[kept], geometry.observer_vectors[kept]

@@ -83,8 +83,8 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         obs = simulate(
             geometry,
             shape,
-            reference,
-            None,
+            q0=reference,
+            omega0=None,
             noise=GaussianNoise(NOISE_MAG),
             seed=rng,
             profile=profile,
@@ -100,7 +100,9 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         axis = rng.normal(size=3)
         rate = math.radians(rng.uniform(0.1, 5.0))
         omega0 = rate * axis / np.linalg.norm(axis)
-        obs = simulate(geometry, shape, q0, omega0, noise=GaussianNoise(NOISE_MAG), seed=rng)
+        obs = simulate(
+            geometry, shape, q0=q0, omega0=omega0, noise=GaussianNoise(NOISE_MAG), seed=rng
+        )
         record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
         true_offset_q = None
     t0, cpu0 = time.perf_counter(), time.process_time()

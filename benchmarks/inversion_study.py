@@ -126,8 +126,8 @@ def simulate_run(scenario: Scenario, shape: FacetModel, truth: Truth, seed: Any)
     return simulate(
         geometry(scenario),
         shape,
-        truth.q0,
-        truth.omega0,
+        q0=truth.q0,
+        omega0=truth.omega0,
         noise=GaussianNoise(scenario.noise_mag),
         seed=np.random.default_rng(seed),
     )

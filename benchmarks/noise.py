@@ -23,12 +23,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from benchmarks._machine import machine_info
 from lightcurve.conditions import load_conditions
+from lightcurve.ephemeris import Site
 from lightcurve.noise import ObservingNoise
 from lightcurve.observations import Observations, validate_table
 
@@ -36,23 +38,41 @@ N = 10_000
 ALTITUDE_M = 2000.0
 
 
-def _geometry(elevation_deg: np.ndarray, exposure_s: float) -> Observations:
-    """Rows at the given elevations; the vectors are placeholders (noise ignores them)."""
-    n = elevation_deg.size
+def placeholder_geometry(
+    elevation_deg: Any, site: Site | None = None, source: str = "benchmark", **columns: Any
+) -> Observations:
+    """Rows at the given elevations with placeholder Sun/observer vectors (km).
+
+    The noise models read only the elevation, the exposure and the site, so a table of
+    elevations is enough to exercise them (also used by ``tests/lightcurve/test_noise.py``).
+
+    Parameters
+    ----------
+    elevation_deg : (n,) array_like
+        Elevation of the object at each row (degrees).
+    site : Site, optional
+        Recorded in the file header (``site``).
+    source : str
+        Name of the table in messages.
+    **columns
+        Further columns, e.g. ``exposure_s`` (s).
+    """
+    elevation = np.asarray(elevation_deg, dtype=float)
     table = pd.DataFrame(
         {
-            "mjd": 60000.0 + np.arange(n) / 86400.0,
+            "mjd": 60000.0 + np.arange(elevation.size) / 86400.0,
             "sun_x": 1.496e8,
             "sun_y": 0.0,
             "sun_z": 0.0,
             "obs_x": 0.0,
             "obs_y": 3.6e4,
             "obs_z": 0.0,
-            "elevation_deg": elevation_deg,
-            "exposure_s": exposure_s,
+            "elevation_deg": elevation,
+            **columns,
         }
     )
-    return Observations(validate_table(table, require_magnitudes=False), {}, "benchmark")
+    meta = {"site": site.label} if site is not None else {}
+    return Observations(validate_table(table, source, meta, require_magnitudes=False), meta, source)
 
 
 def _z(values: np.ndarray, truth: float) -> float:
@@ -65,7 +85,7 @@ def unbiasedness(runs: int, exposure_s: float) -> dict[str, object]:
         "half_metre", [f"site.altitude_m={ALTITUDE_M}", "photometry.extinction_corrected=false"]
     )
     elevation = np.random.default_rng(2024).uniform(20.0, 90.0, N)
-    geometry = _geometry(elevation, exposure_s)
+    geometry = placeholder_geometry(elevation, exposure_s=exposure_s)
     truth = np.full(N, 11.0)
     budget = conditions.budget(truth, elevation, exposure_s, ALTITUDE_M)
     bias = float(np.mean(0.5 * 2.5 / math.log(10.0) / budget.snr**2))
@@ -112,7 +132,7 @@ def spread() -> list[dict[str, float]]:
         (12.0, 45.0, 10.0),
         (16.0, 30.0, 10.0),
     ):
-        geometry = _geometry(np.full(N, elevation), exposure)
+        geometry = placeholder_geometry(np.full(N, elevation), exposure_s=exposure)
         budget = conditions.budget(
             np.array([magnitude]), np.array([elevation]), exposure, ALTITUDE_M
         )

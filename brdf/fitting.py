@@ -181,6 +181,7 @@ def _starting_points(search: _Search, initial: np.ndarray, starts: int) -> list[
 def fit(
     model_name: str,
     table: BRDFTable,
+    *,
     params: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     fixed: Mapping[str, float] | None = None,

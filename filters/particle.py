@@ -57,16 +57,13 @@ import torch
 from filters.attitude import (
     PrincipalInertia,
     propagate_torque_free,
-    quaternion_conjugate,
-    quaternion_multiply,
     quaternion_normalize,
-    quaternion_to_rotation_vector,
     ratios_from_tanh,
-    rotation_vector_to_quaternion,
 )
 from filters.linalg import covariance_root
 from filters.particle_modes import Mode, greedy_clusters, heaviest_mode, weighted_modes
 from filters.resampling import systematic_resample
+from filters.roughening import jittered, kernel_covariance, local_state
 
 __all__ = [
     "AttitudeParticleFilter",
@@ -432,12 +429,14 @@ class AttitudeParticleFilter:
         # resampled keep their place (a zero jitter).
         jitter = covariance_root(kernel)[labels[index]] * selected[:, None, None]
         if move_target is None:
-            self.q, self.omega, self.k = self._jittered(jitter)
+            self.q, self.omega, self.k = jittered(
+                self.q, self.omega, self.k, jitter, self.generator
+            )
             return []
         rates = []
         current = move_target(self.q, self.omega, self.k, self.shape)
         for _ in range(moves):
-            q, omega, k = self._jittered(jitter)
+            q, omega, k = jittered(self.q, self.omega, self.k, jitter, self.generator)
             proposed = move_target(q, omega, k, self.shape)
             log_u = torch.log(torch.rand(len(self), generator=self.generator, dtype=self.dtype))
             accept = (log_u < proposed - current) & selected
@@ -495,47 +494,14 @@ class AttitudeParticleFilter:
         self, labels: torch.Tensor, centers: torch.Tensor, weights: torch.Tensor
     ) -> torch.Tensor:
         """Kernel covariance ``h² C_c`` of every cluster from the weighted particles before
-        resampling, shape (C, d, d); ``h`` uses the cluster's effective sample size."""
-        state = self._local_state(centers[labels])
-        c, d = len(centers), state.shape[1]
-        total = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, weights)
-        # Weights normalised within each cluster: a light cluster (total 1e-200, say) keeps
-        # O(1) weights, so neither its mean nor its effective size underflows to 0/0.
-        w = weights / torch.where(total > 0, total, torch.ones_like(total))[labels]
-        squares = torch.zeros(c, dtype=self.dtype).index_add_(0, labels, w * w)
-        mean = torch.zeros((c, d), dtype=self.dtype).index_add_(0, labels, w[:, None] * state)
-        dev = state - mean[labels]
-        outer = w[:, None, None] * dev[:, :, None] * dev[:, None, :]
-        covariance = torch.zeros((c, d, d), dtype=self.dtype).index_add_(0, labels, outer)
-        m_eff = 1.0 / torch.where(squares > 0, squares, torch.ones_like(squares))
-        h = self.bandwidth * (4.0 / (d + 2)) ** (1.0 / (d + 4)) * m_eff ** (-1.0 / (d + 4))
-        # A cluster whose particles carry no weight at all gets no jitter.
-        return torch.nan_to_num((h * h)[:, None, None] * covariance, nan=0.0, posinf=0.0)
+        resampling, shape (C, d, d) (:func:`filters.roughening.kernel_covariance`)."""
+        state = local_state(self.q, self.omega, self.k, centers[labels])
+        return kernel_covariance(state, labels, len(centers), weights, self.bandwidth)
 
     def resample(self) -> None:
         """Systematic resampling to equal weights within every component (no roughening)."""
         within_weights, log_mass = self._within_weights()
         self._resample_within(within_weights, log_mass, torch.isfinite(log_mass))
-
-    def _local_state(self, q_center: torch.Tensor) -> torch.Tensor:
-        """``[δθ about q_center, ω(, k)]`` of every particle, shape (N, d)."""
-        dtheta = quaternion_to_rotation_vector(
-            quaternion_multiply(self.q, quaternion_conjugate(q_center))
-        )
-        parts = [dtheta, self.omega] + ([self.k] if self.k is not None else [])
-        return torch.cat(parts, dim=1)
-
-    def _jittered(self, root: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, Any]:
-        """Particles moved by ``root @ N(0, I)`` (``root`` (N, d, d) Cholesky factors)."""
-        d = root.shape[-1]
-        noise = torch.randn((len(self), d, 1), generator=self.generator, dtype=self.dtype)
-        step = (root @ noise)[..., 0]
-        q = quaternion_normalize(
-            quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), self.q)
-        )
-        omega = self.omega + step[:, 3:6]
-        k = None if self.k is None else self.k + step[:, 6:8]
-        return q, omega, k
 
     def _folded(self, fold: Callable) -> tuple[torch.Tensor, torch.Tensor]:
         """Particles folded onto the symmetry-equivalent closest to the heaviest one."""

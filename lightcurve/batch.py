@@ -12,7 +12,9 @@ The batch layer
 * turns any exception of a job into an ``"error"`` record with a one-line message, so a bad
   input never stops the batch;
 * runs the jobs serially, in a local process pool (``workers``), or on a Dask distributed
-  cluster (``scheduler`` address), with a progress bar;
+  cluster (``scheduler`` address), with a progress bar of the files and, for jobs that report
+  their progress, a bar per running file (in this process or in the pool's workers, whose
+  reports come back through a queue);
 * writes ``summary.csv`` with one row per input (failures included), atomically.
 """
 
@@ -21,10 +23,13 @@ from __future__ import annotations
 import json
 import logging
 import os
+import queue
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import nullcontext
+from functools import partial
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -43,6 +48,10 @@ INPUT_SUFFIXES = (".csv", ".parquet", ".pq")
 SUMMARY = "summary.json"
 
 Job = Callable[..., dict[str, Any]]
+#: ``report(stem, fraction, message)``: progress of the input named ``stem``.
+Report = Callable[[str, float, str], None]
+#: Seconds between two looks at the workers' progress reports.
+_POLL_S = 0.2
 
 
 def collect_inputs(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
@@ -121,10 +130,16 @@ def _run_one(
     out_dir: Path,
     options: dict[str, Any],
     error_template: dict[str, Any],
+    report: Report | None = None,
 ) -> dict[str, Any]:
-    """Run a job; never raises: failures become error records (also written to disk)."""
+    """Run a job; never raises: failures become error records (also written to disk).
+
+    With ``report``, the job gets ``progress(fraction, message)`` reporting as this input.
+    """
     start = time.perf_counter()
     result_dir = out_dir / input_path.stem
+    if report is not None:
+        options = {**options, "progress": partial(report, input_path.stem)}
     try:
         record = dict(job(input_path, result_dir, **options))
         record.setdefault("status", "ok")
@@ -195,8 +210,9 @@ def run_batch(
         Keys and default values every error record carries (so error summaries have the
         same keys as successful ones).
     job_progress : bool
-        The job takes a ``progress(fraction, message)`` keyword: with ``progress`` and inputs
-        run in this process (one worker, no scheduler), a second bar follows each input.
+        The job takes a ``progress(fraction, message)`` keyword: with ``progress`` (and no
+        Dask ``scheduler``), a bar per running input follows it below the files' bar, for
+        one worker or several.
 
     Returns
     -------
@@ -219,17 +235,7 @@ def run_batch(
             todo.append(path)
     logger.info("%d input(s): %d done before, %d to run", len(files), len(records), len(todo))
     bar = tqdm(total=len(todo), desc="invert", unit="file", disable=not progress or not todo)
-    in_process = workers <= 1 and not scheduler
-    inner = tqdm(
-        total=1.0,
-        desc="this file",
-        position=1,
-        leave=False,
-        bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
-        disable=not (progress and job_progress and in_process and todo),
-    )
-    if not inner.disable:
-        options["progress"] = _file_progress(inner)
+    file_bars = _FileBars(max(1, workers)) if progress and job_progress and not scheduler else None
     try:
         runs = _execute(
             job,
@@ -239,29 +245,77 @@ def run_batch(
             workers=workers,
             scheduler=scheduler,
             template=error_template or {},
+            report=None if file_bars is None else file_bars.update,
         )
         for path, record in runs:
             records[path] = record
+            if file_bars is not None:
+                file_bars.finish(path.stem)
             bar.update(1)
             bar.set_postfix_str(f"{path.stem}: {record['status']}")
-            inner.reset(total=1.0)
     finally:
-        inner.close()
+        if file_bars is not None:
+            file_bars.close()
         bar.close()
         table = _summary_table([records[p] for p in files if p in records], summary_columns)
         atomic_write_table(table, out_dir / "summary.csv")
     return table
 
 
-def _file_progress(bar: tqdm) -> Callable[[float, str], None]:
-    """A ``progress(fraction, message)`` callback that moves ``bar`` (total 1)."""
+class _FileBars:
+    """One progress bar (total 1) per running input, in ``slots`` lines below the files' bar.
 
-    def report(fraction: float, message: str) -> None:
+    A bar opens at an input's first report and closes when its record comes back.
+    """
+
+    def __init__(self, slots: int) -> None:
+        self._bars: dict[str, tuple[tqdm, int]] = {}
+        self._free = list(range(slots, 0, -1))  # screen lines below the files' bar
+
+    def update(self, stem: str, fraction: float, message: str) -> None:
+        if stem not in self._bars:
+            line = self._free.pop() if self._free else len(self._bars) + 1
+            bar = tqdm(
+                total=1.0,
+                desc=stem,
+                position=line,
+                leave=False,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
+            )
+            self._bars[stem] = (bar, line)
+        bar = self._bars[stem][0]
         bar.n = min(max(float(fraction), 0.0), 1.0)
         bar.set_postfix_str(message[:60], refresh=False)
         bar.refresh()
 
-    return report
+    def finish(self, stem: str) -> None:
+        if stem in self._bars:
+            bar, line = self._bars.pop(stem)
+            bar.close()
+            self._free.append(line)
+
+    def close(self) -> None:
+        for stem in list(self._bars):
+            self.finish(stem)
+
+
+class _QueueReport:
+    """``report(stem, fraction, message)`` of a worker process: puts it on a managed queue."""
+
+    def __init__(self, reports: Any) -> None:
+        self.reports = reports
+
+    def __call__(self, stem: str, fraction: float, message: str) -> None:
+        self.reports.put((stem, fraction, message))
+
+
+def _drain(reports: Any, report: Report) -> None:
+    """Hand every queued worker report to ``report``."""
+    while True:
+        try:
+            report(*reports.get_nowait())
+        except queue.Empty:
+            return
 
 
 def _execute(
@@ -273,7 +327,10 @@ def _execute(
     workers: int,
     scheduler: str | None,
     template: dict[str, Any],
+    report: Report | None = None,
 ) -> Iterable[tuple[Path, dict[str, Any]]]:
+    """``(input, record)`` of every input of ``todo`` as they finish; ``report`` receives the
+    progress of the running inputs (not from a Dask cluster)."""
     if not todo:
         return
     if scheduler:
@@ -298,20 +355,32 @@ def _execute(
                 yield futures[future], future.result()
     elif workers > 1:
         threads = max(1, (os.cpu_count() or 1) // workers)
-        with ProcessPoolExecutor(
-            max_workers=workers,
-            mp_context=get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(threads,),
-        ) as pool:
+        context = get_context("spawn")
+        with (
+            context.Manager() if report is not None else nullcontext() as manager,
+            ProcessPoolExecutor(
+                max_workers=workers,
+                mp_context=context,
+                initializer=_init_worker,
+                initargs=(threads,),
+            ) as pool,
+        ):
+            reports = manager.Queue() if manager is not None else None
+            remote = _QueueReport(reports) if reports is not None else None
             futures = {
-                pool.submit(_run_one, job, path, out_dir, options, template): path for path in todo
+                pool.submit(_run_one, job, path, out_dir, options, template, remote): path
+                for path in todo
             }
-            for future in as_completed(futures):
-                yield futures[future], future.result()
+            pending = set(futures)
+            while pending:
+                done, pending = wait(pending, timeout=_POLL_S, return_when=FIRST_COMPLETED)
+                if reports is not None:
+                    _drain(reports, report)
+                for future in done:
+                    yield futures[future], future.result()
     else:
         for path in todo:
-            yield path, _run_one(job, path, out_dir, options, template)
+            yield path, _run_one(job, path, out_dir, options, template, report)
 
 
 def _summary_table(records: list[dict[str, Any]], columns: Sequence[str]) -> pd.DataFrame:

@@ -20,8 +20,9 @@ adding a command means adding one file. User errors
 (:class:`ValueError`, :class:`OSError` and their subclasses, which every package in this
 project uses for bad input) and usage mistakes are printed as one line
 ``lightcurve <cmd>: error: ...`` with exit code 2; ``-v`` shows the traceback and debug
-logging, ``-q`` keeps warnings and errors only (no progress bars); both work before or after
-the command. Every option's help ends with its default, ``(default: X)``.
+logging, ``-q`` keeps warnings and errors only: no progress bars, and no status lines from a
+command that writes its results to files (``--out``); both work before or after the
+command. Every option's help ends with its default, ``(default: X)``.
 
 Threads: ``lightcurve --threads N COMMAND …`` (or the ``LIGHTCURVE_THREADS`` environment
 variable) sets how many threads a command computes on (torch's intra-op threads, the fused
@@ -33,6 +34,7 @@ otherwise), so a command beside other CPU-bound processes costs the CPU time it 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import logging
@@ -162,7 +164,7 @@ def _add_verbosity(parser: argparse.ArgumentParser, suffix: str = "") -> None:
         action="count",
         default=0,
         dest=f"quiet{suffix}",
-        help="less logging (-q: warnings and errors, -qq: errors) and no progress bars",
+        help="less output: no progress bars or status lines (-q: warnings and errors, -qq: errors)",
     )
 
 
@@ -291,6 +293,15 @@ def _log_level(verbose: int, quiet: int) -> int:
     return logging.ERROR if quiet > 1 else logging.WARNING
 
 
+def _run(args: argparse.Namespace) -> int:
+    """Run the command; with ``-q``, one that writes its results to ``--out`` prints no status
+    lines (its standard output is discarded; warnings and errors go to standard error)."""
+    if not (args.quiet and getattr(args, "out", None) is not None):
+        return int(args._run(args) or 0)
+    with open(os.devnull, "w") as devnull, contextlib.redirect_stdout(devnull):
+        return int(args._run(args) or 0)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``lightcurve`` console script."""
     argv = _attach_negative_values(list(sys.argv[1:] if argv is None else argv))
@@ -309,7 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args._run(args) or 0)
+        return _run(args)
     except BrokenPipeError:  # output piped into `head` and the like: stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

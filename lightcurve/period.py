@@ -289,6 +289,7 @@ def _parabola_minimum(f: np.ndarray, c: np.ndarray) -> tuple[float, float, float
 def period_search(
     observations: Observations | Sequence[Observations],
     period_range_h: tuple[float, float] | None = None,
+    *,
     orders: Sequence[int] = (2, 3, 4, 5, 6),
     oversample: float = 10.0,
     pole: tuple[float, float] | None = None,

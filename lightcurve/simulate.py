@@ -142,9 +142,9 @@ def _attitude(
 def simulate(
     geometry: Observations,
     shape: FacetModel | ArticulatedModel,
-    q0: np.ndarray | None,
-    omega0: np.ndarray | None,
     *,
+    q0: np.ndarray | None = None,
+    omega0: np.ndarray | None = None,
     inertia: np.ndarray | None = None,
     noise: NoiseModel | None = None,
     shadows: str = "auto",
@@ -164,7 +164,7 @@ def simulate(
     q0 : (4,) array or None
         Attitude at the first epoch (inertial → body) of the ``torque-free`` profile; the
         fixed reference attitude of the ``inertial`` profile (default the identity);
-        unused by the other profiles (give None).
+        unused by the other profiles.
     omega0 : (3,) array or None
         Body rates at the first epoch (rad/s, body frame), ``torque-free`` only.
     inertia : (3, 3) array, optional

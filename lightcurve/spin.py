@@ -379,7 +379,14 @@ def simulate_rotator(
         night = Observations(table, {"target": geometry.meta.get("target", "satellite")})
         q0, omega0 = spin.initial_state(float(table["mjd"].iloc[0]))
         result = simulate(
-            night, shape, q0, omega0, inertia=inertia, noise=noise, shadows=shadows, seed=rng
+            night,
+            shape,
+            q0=q0,
+            omega0=omega0,
+            inertia=inertia,
+            noise=noise,
+            shadows=shadows,
+            seed=rng,
         )
         out = result.table.copy()
         out["lightcurve_id"] = int(label)

@@ -36,11 +36,9 @@ or ``remove`` leaves the library as it was.
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import logging
 import os
-import re
 import shutil
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -53,9 +51,19 @@ from filelock import FileLock
 
 from shapes.articulation import ArticulatedModel, Articulation
 from shapes.errors import ShapeError
-from shapes.files import atomic_write, file_sha256, temp_path
+from shapes.files import file_sha256, temp_path
 from shapes.io import load as load_mesh
 from shapes.io import write_obj
+from shapes.manifest import (
+    LOCK,
+    MANIFEST,
+    check_name,
+    manifest_entry,
+    manifest_field,
+    read_manifest,
+    swap_in,
+    write_manifest,
+)
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
@@ -79,26 +87,9 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-MANIFEST = "manifest.json"
-#: Lock file of writers, beside the manifest.
-LOCK = ".manifest.lock"
-FORMAT = "space-lightcurves shape library"
-VERSION = 1
-_NAME = re.compile(r"[A-Za-z0-9_.-]+")
-
 
 class LibraryReadOnlyError(ShapeError, PermissionError):
     """A write (add/remove) was attempted on a read-only library."""
-
-
-def check_name(name: str) -> str:
-    """Return ``name`` if it is a valid shape name (``[A-Za-z0-9_.-]+``, not ``.``/``..``)."""
-    if not isinstance(name, str) or not _NAME.fullmatch(name) or name in (".", ".."):
-        raise ShapeError(
-            f"invalid shape name {name!r}: use letters, digits, '_', '.', '-' "
-            "(no path separators, not '.' or '..')"
-        )
-    return name
 
 
 def builtin_library_path() -> Path:
@@ -145,24 +136,7 @@ class ShapeLibrary:
         return self.path / MANIFEST
 
     def _read_manifest(self) -> dict[str, Any]:
-        if not self.manifest_path.is_file():
-            if self.path.exists() and not self.path.is_dir():
-                raise ShapeError(f"{self.path}: not a folder")
-            return {"format": FORMAT, "version": VERSION, "shapes": {}}
-        try:
-            data = json.loads(self.manifest_path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ShapeError(f"{self.manifest_path}: unreadable manifest ({exc})") from None
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise ShapeError(f"{self.manifest_path}: not a shape-library manifest")
-        if data.get("version") != VERSION:
-            raise ShapeError(
-                f"{self.manifest_path}: manifest version {data.get('version')!r} is not "
-                f"supported (expected {VERSION})"
-            )
-        if not isinstance(data.get("shapes"), dict):
-            raise ShapeError(f"{self.manifest_path}: field 'shapes' must be an object")
-        return data
+        return read_manifest(self.path)
 
     def names(self) -> list[str]:
         """Sorted shape names."""
@@ -224,7 +198,7 @@ class ShapeLibrary:
             parts = self.articulation(name)
             model = self.load(name, build_visibility=build_visibility, visibility=visibility)
             return model if parts is None else ArticulatedModel(model, parts)
-        mesh_path = self.path / self._field(entry, "mesh", str, where)
+        mesh_path = self.path / manifest_field(entry, "mesh", str, where)
         if not mesh_path.is_file():
             raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
         if file_sha256(mesh_path) != entry.get("sha256"):
@@ -233,15 +207,15 @@ class ShapeLibrary:
             )
         materials = {
             group: Material.from_dict(spec, f"{where}, material of group {group!r}")
-            for group, spec in self._field(entry, "materials", dict, where).items()
+            for group, spec in manifest_field(entry, "materials", dict, where).items()
         }
-        inertia_spec = self._field(entry, "inertia", dict, where)
+        inertia_spec = manifest_field(entry, "inertia", dict, where)
         source = inertia_spec.get("source")
         if source not in ("solid", "shell", "given"):
             raise ShapeError(f"{where}: inertia source must be solid, shell or given")
         model = load_mesh(
             mesh_path,
-            unit=self._field(entry, "unit", str, where),
+            unit=manifest_field(entry, "unit", str, where),
             name=name,
             materials=materials,
             inertia=np.asarray(inertia_spec.get("tensor"), float) if source == "given" else source,
@@ -319,13 +293,6 @@ class ShapeLibrary:
         old = entry.get("visibility")
         return self._rebuild(name, model, entry, self.path / old if old else None)
 
-    @staticmethod
-    def _field(entry: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
-        value = entry.get(key)
-        if not isinstance(value, kind):
-            raise ShapeError(f"{where}: field {key!r} must be a {kind.__name__}, got {value!r}")
-        return value
-
     def validate(self, name: str) -> FacetModel:
         """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
         model = self.load(name, build_visibility=False)
@@ -353,9 +320,7 @@ class ShapeLibrary:
             yield self._read_manifest()
 
     def _write_manifest(self, manifest: dict[str, Any]) -> None:
-        manifest["shapes"] = dict(sorted(manifest["shapes"].items()))
-        with atomic_write(self.manifest_path) as handle:
-            handle.write(json.dumps(manifest, indent=2) + "\n")
+        write_manifest(self.path, manifest)
 
     def add(
         self,
@@ -418,7 +383,15 @@ class ShapeLibrary:
             "progress": progress,
         }
         verbatim = mesh if keep_file else None
-        return self._commit(name, model, record, force, verbatim, table_options, articulation)
+        return self._commit(
+            name,
+            model,
+            record,
+            force=force,
+            verbatim=verbatim,
+            table_options=table_options,
+            articulation=articulation,
+        )
 
     def add_model(
         self,
@@ -443,7 +416,15 @@ class ShapeLibrary:
         articulation = _articulation(parts, model, name, None)
         record = {**model.provenance, **dict(provenance or {})}
         table_options = {"resolution": resolution, "samples": samples, "spacing": spacing}
-        return self._commit(name, model, record, force, None, table_options, articulation)
+        return self._commit(
+            name,
+            model,
+            record,
+            force=force,
+            verbatim=None,
+            table_options=table_options,
+            articulation=articulation,
+        )
 
     def _check_free(self, name: str, force: bool) -> None:
         if not force and name in self._read_manifest()["shapes"]:
@@ -456,6 +437,7 @@ class ShapeLibrary:
         name: str,
         model: FacetModel,
         provenance: dict[str, Any],
+        *,
         force: bool,
         verbatim: Path | None,
         table_options: dict[str, Any],
@@ -489,7 +471,7 @@ class ShapeLibrary:
                 staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
                 table.save(staged["visibility"])
                 stored = stored.with_visibility(table)
-            entry = self._entry(name, stored, final, staged, provenance)
+            entry = manifest_entry(name, stored, final, staged, provenance)
             if articulation is not None:
                 entry["parts"] = articulation.to_list()
             with self._locked() as manifest:
@@ -498,74 +480,11 @@ class ShapeLibrary:
                 old = manifest["shapes"].get(name, {})
                 old_files = [self.path / old[k] for k in ("mesh", "visibility") if old.get(k)]
                 manifest["shapes"][name] = entry
-                self._swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
+                swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
             return stored
         finally:
             for path in staged.values():
                 path.unlink(missing_ok=True)
-
-    def _entry(
-        self,
-        name: str,
-        model: FacetModel,
-        final: dict[str, Path],
-        staged: dict[str, Path],
-        provenance: dict[str, Any],
-    ) -> dict[str, Any]:
-        inertia: dict[str, Any] = {
-            "source": model.inertia_source,
-            "tensor": model.inertia.tolist(),
-            "center_of_mass": model.center_of_mass.tolist(),
-        }
-        if not np.isnan(model.mass):
-            inertia["mass"] = model.mass
-        entry: dict[str, Any] = {
-            "mesh": final["mesh"].name,
-            "unit": model.unit,
-            "sha256": file_sha256(staged["mesh"]),
-            "facets": len(model.faces),
-            "groups": list(model.group_names),
-            "materials": {g: model.materials[g].to_dict() for g in model.group_names},
-            "inertia": inertia,
-            "visibility": final["visibility"].name if "visibility" in final else None,
-            "provenance": {
-                "license": "unknown",
-                "added": _dt.date.today().isoformat(),
-                **{k: v for k, v in provenance.items() if k not in ("file", "unit")},
-            },
-        }
-        if "visibility" in staged:
-            entry["visibility_sha256"] = file_sha256(staged["visibility"])
-        return entry
-
-    def _swap_in(
-        self,
-        staged: dict[str, Path],
-        final: dict[str, Path],
-        old_files: list[Path],
-        write_manifest: Any,
-    ) -> None:
-        """Rename staged files into place and write the manifest; undo everything on failure."""
-        backups: list[tuple[Path, Path]] = []
-        moved: list[Path] = []
-        try:
-            for path in {*old_files, *final.values()}:
-                if path.exists():
-                    backup = path.with_name(f".{path.name}.backup")
-                    os.replace(path, backup)
-                    backups.append((backup, path))
-            for key, path in staged.items():
-                os.replace(path, final[key])
-                moved.append(final[key])
-            write_manifest()
-        except BaseException:
-            for path in moved:
-                path.unlink(missing_ok=True)
-            for backup, path in backups:
-                os.replace(backup, path)
-            raise
-        for backup, _ in backups:
-            backup.unlink(missing_ok=True)
 
     def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
         """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
@@ -579,7 +498,7 @@ class ShapeLibrary:
                     return
                 entry["visibility"] = final.name
                 entry["visibility_sha256"] = file_sha256(staged)
-                self._swap_in(
+                swap_in(
                     {"visibility": staged},
                     {"visibility": final},
                     [],

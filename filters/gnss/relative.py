@@ -494,8 +494,9 @@ class RelativeGnssSolver:
 
         # Carrier-smoothed code (Hatch filter of single differences) and its solution.
         smoothed, variance, smoothed_epochs = self.smoothing.update(
-            t, prns, sd_code, sd_phase, continuous, 2.0 * cfg.code_sigma**2,
-            2.0 * cfg.phase_sigma**2,
+            t, prns, sd_code, sd_phase, continuous,
+            code_variance=2.0 * cfg.code_sigma**2,
+            phase_variance=2.0 * cfg.phase_sigma**2,
         )  # fmt: skip
         b_smooth, c_smooth = self._code_solution(
             sat, vel, ref, base, smoothed,

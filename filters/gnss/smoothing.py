@@ -54,7 +54,8 @@ class CarrierSmoothing:
     --------
     >>> smoothing = CarrierSmoothing(100.0)
     >>> code, variance, epochs = smoothing.update(
-    ...     t, prns, sd_code, sd_phase, continuous, code_variance, phase_variance)
+    ...     t, prns, sd_code, sd_phase, continuous,
+    ...     code_variance=code_variance, phase_variance=phase_variance)
     """
 
     def __init__(self, window: float) -> None:
@@ -78,6 +79,7 @@ class CarrierSmoothing:
         code: Any,
         phase: Any,
         continuous: Any,
+        *,
         code_variance: float,
         phase_variance: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

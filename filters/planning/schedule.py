@@ -358,15 +358,8 @@ def plan_final_covariance(
 
     Parameters
     ----------
-    full : Forecast
-        Prediction over the candidate steps ``full.step + 1 … full.step + L``.
-    count : int
-        Observations to take (``1 … L``).
-    s_max : int, optional
-        Largest interval between observations (default: unlimited).
-    indices : sequence of int, optional
-        States whose final covariance is minimised (default: all).
-    measure : {"trace", "logdet"}
+    full, count, s_max, indices, measure
+        As in :func:`greedy_schedule`.
     method : {"greedy", "rollout"}
         :func:`greedy_schedule` (the whole set, in any order), or the sequential
         :class:`PosteriorRollout` planner with its window on the last step (what an online

@@ -176,7 +176,8 @@ def run(args: argparse.Namespace) -> int:
         error_template=template,
     )
     ok = int((table["status"] == "ok").sum()) if len(table) else 0
-    print(f"{args.out}: {ok} of {len(table)} input(s) inverted", file=sys.stderr)
+    if not args.quiet:
+        print(f"{args.out}: {ok} of {len(table)} input(s) inverted", file=sys.stderr)
     for _, row in table[table["status"] != "ok"].iterrows():
         print(f"  {row['input']}: {row['error']}", file=sys.stderr)
     return 0 if ok == len(table) else 1

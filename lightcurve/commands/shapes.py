@@ -270,18 +270,20 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         progress=sys.stderr.isatty(),
         parts=_read_parts(args.parts) if args.parts else None,
     )
-    print(
-        f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
-        f"groups {', '.join(model.group_names)}, inertia {model.inertia_source}"
-        + (", visibility table built" if model.visibility is not None else "")
-        + (", parts " + ", ".join(library.articulation(args.name).names) if args.parts else "")
-    )
+    if not args.quiet:
+        print(
+            f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
+            f"groups {', '.join(model.group_names)}, inertia {model.inertia_source}"
+            + (", visibility table built" if model.visibility is not None else "")
+            + (", parts " + ", ".join(library.articulation(args.name).names) if args.parts else "")
+        )
     return 0
 
 
 def _remove(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     library.remove(args.name)
-    print(f"removed {args.name}")
+    if not args.quiet:
+        print(f"removed {args.name}")
     return 0
 
 
@@ -306,6 +308,8 @@ def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     for name in names:
         model = library.rebuild_visibility(name)
         table = model.visibility
+        if args.quiet:
+            continue
         if table is None:
             print(f"{name}: convex, no visibility table")
             continue

@@ -172,8 +172,8 @@ def run(args: argparse.Namespace) -> int:
     result = simulate(
         geometry,
         shape,
-        args.q0,
-        None if args.omega0 is None else np.deg2rad(args.omega0),
+        q0=args.q0,
+        omega0=None if args.omega0 is None else np.deg2rad(args.omega0),
         inertia=args.inertia,
         noise=noise,
         shadows=args.shadows,

@@ -1,7 +1,8 @@
 """Starlink v1.5 brightness observations (Pomenis, Mount Lemmon) and the two-surface model.
 
 Source: Fankhauser, Askari & Tyson, "Satellite Optical Brightness" (2023), MIT license;
-files in ``data/starlink/`` of a checkout (a real data set, not package data). The
+the observations are package data (``lightcurve/data/starlink/``, read through
+:mod:`importlib.resources`, so an installed wheel carries them). The
 observations give the UTC time, the satellite height above the Earth (km), its topocentric
 altitude and azimuth (degrees) and the measured AB magnitude at Mount Lemmon (32.4434° N,
 110.7881° W, ~2790 m).
@@ -19,6 +20,7 @@ laboratory BRDF tables of the same paper — nothing is tuned to the brightness 
 
 from __future__ import annotations
 
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +53,9 @@ __all__ = [
     "starlink_model",
 ]
 
-POMENIS_PATH = (
-    Path(__file__).resolve().parents[2] / "data" / "starlink" / "pomenis_observations.csv"
+#: The Pomenis observations: package data of :mod:`lightcurve`.
+POMENIS_PATH = Path(
+    str(resources.files("lightcurve").joinpath("data", "starlink", "pomenis_observations.csv"))
 )
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon (Pomenis)")
 CHASSIS_AREA_M2 = 3.64

@@ -102,9 +102,11 @@ def test_simulate_writes_joint_angles_and_reads_scheduled_columns():
         }
     )
     geometry = Observations(validate_table(table, "flap.csv", {}, require_magnitudes=False), {})
-    result = simulate(geometry, shape, [0, 0, 0, 1], [0, 0, 0], inertia=np.eye(3), shadows="exact")
+    result = simulate(
+        geometry, shape, q0=[0, 0, 0, 1], omega0=[0, 0, 0], inertia=np.eye(3), shadows="exact"
+    )
     assert np.allclose(result.table["joint_flap_deg"], np.linspace(0.0, 90.0, n))
     assert np.all(np.diff(result.table["mag"].to_numpy()) != 0.0)
     bad = geometry.table.assign(flap_deg=[0.0, 10.0, 120.0, 0.0, 0.0])
     with pytest.raises(ShapeError, match="column 'flap_deg', row 3"):
-        simulate(Observations(bad, {}), shape, [0, 0, 0, 1], [0, 0, 0], inertia=np.eye(3))
+        simulate(Observations(bad, {}), shape, q0=[0, 0, 0, 1], omega0=[0, 0, 0], inertia=np.eye(3))

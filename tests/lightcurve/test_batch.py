@@ -10,7 +10,7 @@ import pytest
 from lightcurve.batch import collect_inputs, run_batch
 
 sys.path.insert(0, str(Path(__file__).parent))
-from batch_jobs import count_rows
+from batch_jobs import count_rows, count_rows_reporting
 
 ROW = "2024-01-01T00:00:{s:02d}Z,{mag},0.05,1.4e8,2.0e7,1.0e6,3.0e4,1.0e4,5.0e3"
 HEADER = "epoch,mag,mag_err,sun_x,sun_y,sun_z,obs_x,obs_y,obs_z\n"
@@ -61,6 +61,24 @@ def test_parallel_workers_give_the_same_summaries(tmp_path):
     parallel = run_batch(count_rows, [tmp_path / "in"], tmp_path / "b", progress=False, workers=2)
     columns = ["input", "status", "error", "n_measurements"]
     pd.testing.assert_frame_equal(serial[columns], parallel[columns])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_every_running_file_gets_a_progress_bar(tmp_path, capsys, workers):
+    paths = make_inputs(tmp_path / "in", n=3)
+    table = run_batch(
+        count_rows_reporting,
+        [tmp_path / "in"],
+        tmp_path / "out",
+        workers=workers,
+        progress=True,
+        job_progress=True,
+    )
+    err = capsys.readouterr().err
+    assert list(table["status"]) == ["ok", "error", "error"]
+    for path in paths:  # failed inputs report before failing, so every file has its bar
+        assert f"{path.stem}:  50%" in err
+    assert "rows read" in err
 
 
 def test_input_collection_errors(tmp_path):

@@ -189,16 +189,26 @@ def inversion(short_light_curve, tmp_path_factory):
     return out / short_light_curve.stem, stderr.getvalue()
 
 
-def test_invert_progress_bars(inversion):
+def test_invert_progress_bars(inversion, short_light_curve):
     _, err = inversion
-    assert "invert" in err and "this file" in err  # the batch bar and the per-file bar
+    assert "invert" in err  # the files' bar
+    assert f"{short_light_curve.stem}: " in err and "%|" in err  # the bar of the running file
 
 
 def test_quiet_invert_draws_no_bar(short_light_curve, tmp_path, capsys):
     argv = ["invert", str(short_light_curve), "--shape", "box_wing", "--method", "ukf"]
     argv += ["--init", "none", "--q0", "0,0,0,1", "--omega0", "0.5,1,-0.3", "-q"]
     assert main([*argv, "--out", str(tmp_path / "quiet")]) == 0
-    assert "this file" not in capsys.readouterr().err
+    assert capsys.readouterr().err == ""  # no bar, no status line
+
+
+def test_quiet_silences_status_lines(tmp_path, capsys):
+    argv = ["geometry", "--start", "2024-03-10T04:48:00", "--duration", "60", "--geo", "-100"]
+    assert main([*argv, "--out", str(tmp_path / "loud.csv")]) == 0
+    assert "epochs" in capsys.readouterr().out
+    assert main(["-q", *argv, "--out", str(tmp_path / "quiet.csv")]) == 0
+    assert capsys.readouterr().out == ""
+    assert (tmp_path / "quiet.csv").read_text() == (tmp_path / "loud.csv").read_text()
 
 
 def test_plot_draws_the_result(inversion, tmp_path):

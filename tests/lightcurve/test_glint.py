@@ -43,7 +43,9 @@ def geo_night():
     y = -np.cross(r, v) / np.linalg.norm(np.cross(r, v))
     q0 = quaternion_from_matrix(np.array([np.cross(y, z), y, z])[None])[0]
     omega = np.array([0.0, -2 * math.pi / SIDEREAL_DAY, 0.0])
-    dry = simulate(geometry, primitives.box_wing(), q0, omega, inertia=np.eye(3), shadows="none")
+    dry = simulate(
+        geometry, primitives.box_wing(), q0=q0, omega0=omega, inertia=np.eye(3), shadows="none"
+    )
     pab_body = np.asarray(
         rotate(dry.truth[:, :4], phase_angle_bisector(geometry.sun_vectors, dry.observer_vectors))
     )
@@ -55,7 +57,9 @@ def geo_night():
 def test_geo_box_wing_array_normal_from_a_night_of_glints(geo_night):
     geometry, q0, omega, normal = geo_night
     shape = primitives.box_wing(array_normal=normal)
-    sim = simulate(geometry, shape, q0, omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=3)
+    sim = simulate(
+        geometry, shape, q0=q0, omega0=omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=3
+    )
     detection = detect_glints(sim, false_alarm=1e-3)
     assert len(detection.glints) >= 1
     attitudes = [sim.truth[np.argmin(np.abs(sim.times - g.time_s)), :4] for g in detection.glints]
@@ -73,7 +77,9 @@ def test_no_glint_on_a_glint_free_curve(geo_night):
     """The array faces along-track: it never meets the PAB; MLI gives broad humps only."""
     geometry, q0, omega, _ = geo_night
     shape = primitives.box_wing(array_normal=(1.0, 0.0, 0.0))
-    sim = simulate(geometry, shape, q0, omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=5)
+    sim = simulate(
+        geometry, shape, q0=q0, omega0=omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=5
+    )
     assert detect_glints(sim, false_alarm=1e-3).glints == []
 
 
@@ -174,14 +180,18 @@ def test_geo_box_wing_with_two_lobe_array_flashes_and_gives_its_normal(geo_night
     geometry, q0, omega, normal = geo_night
     materials = {"solar_array": _two_lobe_array()}
     shape = primitives.box_wing(array_normal=normal, materials=materials)
-    sim = simulate(geometry, shape, q0, omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=3)
+    sim = simulate(
+        geometry, shape, q0=q0, omega0=omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=3
+    )
     glints = detect_glints(sim, false_alarm=1e-3).glints
     assert len(glints) >= 1
     attitudes = [sim.truth[np.argmin(np.abs(sim.times - g.time_s)), :4] for g in glints]
     estimate = panel_normal(glints, attitudes)
     assert math.degrees(math.acos(np.clip(estimate.normal @ normal, -1, 1))) < 1.0
     away = primitives.box_wing(array_normal=(1.0, 0.0, 0.0), materials=materials)
-    sim = simulate(geometry, away, q0, omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=5)
+    sim = simulate(
+        geometry, away, q0=q0, omega0=omega, inertia=np.eye(3), noise=GaussianNoise(0.02), seed=5
+    )
     assert detect_glints(sim, false_alarm=1e-3).glints == []
 
 
@@ -203,8 +213,8 @@ def test_no_false_glint_on_a_panel_fading_towards_its_terminator():
         sim = simulate(
             geometry,
             panel,
-            q0,
-            np.zeros(3),
+            q0=q0,
+            omega0=np.zeros(3),
             inertia=np.eye(3),
             noise=GaussianNoise(0.02),
             shadows="none",

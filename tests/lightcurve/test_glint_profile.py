@@ -57,8 +57,6 @@ def flashing(window, tmp_path_factory):
     sim = simulate(
         window,
         shape,
-        None,
-        None,
         noise=GaussianNoise(0.02),
         seed=3,
         profile="nadir",

@@ -49,7 +49,12 @@ def inputs(tmp_path_factory) -> Path:
     shape = get_library().load("box")
     for i in range(N_INPUTS):
         result = simulate(
-            geometry, shape, Q0, np.deg2rad(OMEGA0_DEG_S), noise=GaussianNoise(0.05), seed=i
+            geometry,
+            shape,
+            q0=Q0,
+            omega0=np.deg2rad(OMEGA0_DEG_S),
+            noise=GaussianNoise(0.05),
+            seed=i,
         )
         io.write(result, folder / f"obj{i:02d}.csv")
     truncated = folder / "obj05.csv"

@@ -3,10 +3,10 @@
 import math
 
 import numpy as np
-import pandas as pd
 import pytest
 from scipy.integrate import quad
 
+from benchmarks.noise import placeholder_geometry
 from lightcurve import io
 from lightcurve.cli import main
 from lightcurve.conditions import (
@@ -26,25 +26,7 @@ MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")
 
 def constant_source(elevation_deg, site=MOUNT_LEMMON, **columns):
     """A geometry table of n rows with the given elevations (vectors are placeholders)."""
-    elevation = np.asarray(elevation_deg, dtype=float)
-    n = elevation.size
-    table = pd.DataFrame(
-        {
-            "mjd": 60000.0 + np.arange(n) / 86400.0,
-            "sun_x": 1.496e8,
-            "sun_y": 0.0,
-            "sun_z": 0.0,
-            "obs_x": 0.0,
-            "obs_y": 3.6e4,
-            "obs_z": 0.0,
-            "elevation_deg": elevation,
-            **columns,
-        }
-    )
-    meta = {"site": site.label} if site is not None else {}
-    return Observations(
-        validate_table(table, "constant.csv", meta, require_magnitudes=False), meta, "constant.csv"
-    )
+    return placeholder_geometry(elevation_deg, site, "constant.csv", **columns)
 
 
 def test_snr_of_a_star_matches_the_ccd_equation_worked_by_hand():

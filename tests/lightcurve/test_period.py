@@ -111,7 +111,12 @@ def test_tumbling_rocket_body_period_within_one_percent():
     body = primitives.rocket_body(sections=16)
     q0 = np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9])
     sim = simulate(
-        geometry, body, q0, [2 * np.pi / period_s, 0.0, 0.0], noise=GaussianNoise(0.02), seed=4
+        geometry,
+        body,
+        q0=q0,
+        omega0=[2 * np.pi / period_s, 0.0, 0.0],
+        noise=GaussianNoise(0.02),
+        seed=4,
     )
     result = period_search(sim, (20 / 3600, 600 / 3600), orders=(2, 4))
     assert abs(result.period_h * 3600 / period_s - 1) < 0.01

@@ -176,15 +176,13 @@ def test_mode_identification_tells_stabilised_from_tumbling(night):
     stabilised = simulate(
         night,
         shape,
-        None,
-        None,
         noise=GaussianNoise(0.03),
         seed=1,
         profile="nadir",
         offset_deg=offset,
     )
     q0, omega0 = np.array([0.3, -0.5, 0.1, 0.806]), np.radians([0.6, -0.5, 0.6])
-    tumbling = simulate(night, shape, q0, omega0, noise=GaussianNoise(0.03), seed=2)
+    tumbling = simulate(night, shape, q0=q0, omega0=omega0, noise=GaussianNoise(0.03), seed=2)
     found = {}
     for name, obs, start in (
         ("stabilised", stabilised, stabilised.truth[0]),

@@ -40,9 +40,9 @@ def test_simulation_truth_and_noise(geometry):
     q0 = np.array([0.1, 0.2, 0.3, 0.927])
     q0 /= np.linalg.norm(q0)
     w0 = np.deg2rad([0.5, -1.0, 2.0])
-    exact = simulate(geometry, shape, q0, w0)
-    noisy = simulate(geometry, shape, q0, w0, noise=GaussianNoise(0.05), seed=3)
-    again = simulate(geometry, shape, q0, w0, noise=GaussianNoise(0.05), seed=3)
+    exact = simulate(geometry, shape, q0=q0, omega0=w0)
+    noisy = simulate(geometry, shape, q0=q0, omega0=w0, noise=GaussianNoise(0.05), seed=3)
+    again = simulate(geometry, shape, q0=q0, omega0=w0, noise=GaussianNoise(0.05), seed=3)
     pd.testing.assert_frame_equal(noisy.table, again.table)
     residual = noisy.magnitudes - exact.magnitudes
     assert abs(residual.std() - 0.05) < 0.01 and abs(residual.mean()) < 0.01
@@ -63,7 +63,7 @@ def test_axisymmetric_truth_matches_closed_form(geometry):
     shape = get_library().load("cylinder")
     inertia = np.diag([2.0, 2.0, 1.0])
     q0, w0 = np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.01, 0.0, 0.03])
-    truth = simulate(geometry, shape, q0, w0, inertia=inertia).truth
+    truth = simulate(geometry, shape, q0=q0, omega0=w0, inertia=inertia).truth
     q_exact, w_exact = axisymmetric_solution(q0, w0, 2.0, 1.0, geometry.times)
     assert np.max(attitude_angle(truth[:, :4], q_exact)) < 1e-8
     np.testing.assert_allclose(truth[:, 4:], w_exact, atol=1e-10)
@@ -88,8 +88,8 @@ def test_round_trip_of_simulated_file(tmp_path, geometry):
     sim = simulate(
         geometry,
         shape,
-        [0, 0, 0, 1],
-        np.deg2rad([0.3, 0.2, -0.4]),
+        q0=[0, 0, 0, 1],
+        omega0=np.deg2rad([0.3, 0.2, -0.4]),
         noise=GaussianNoise(0.02),
         seed=1,
     )

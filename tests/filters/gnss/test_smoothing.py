@@ -25,7 +25,13 @@ def run_channels(window, epochs, code_sigma, phase_sigma, seed):
         code = rho + code_sigma * rng.standard_normal(CHANNELS)
         phase = rho + bias + phase_sigma * rng.standard_normal(CHANNELS)
         smoothed, variance, count = smoothing.update(
-            float(k), prn, code, phase, np.ones(CHANNELS, bool), code_sigma**2, phase_sigma**2
+            float(k),
+            prn,
+            code,
+            phase,
+            np.ones(CHANNELS, bool),
+            code_variance=code_sigma**2,
+            phase_variance=phase_sigma**2,
         )
         errors.append(smoothed - rho)
         variances.append(variance)
@@ -65,7 +71,9 @@ def test_zero_window_returns_the_raw_code():
     rng = np.random.default_rng(1)
     for k in range(5):
         code, phase = rng.normal(size=3), rng.normal(size=3)
-        out, variance, count = smoothing.update(k, [3, 5, 9], code, phase, [True] * 3, 0.5, 1e-5)
+        out, variance, count = smoothing.update(
+            k, [3, 5, 9], code, phase, [True] * 3, code_variance=0.5, phase_variance=1e-5
+        )
         np.testing.assert_allclose(out, code, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(count, [k + 1] * 3)  # continuous, but not averaged
         np.testing.assert_array_equal(variance, [0.5] * 3)
@@ -81,15 +89,27 @@ def test_a_slip_or_a_gap_restarts_only_that_channel():
         code = rho + 0.5 * rng.standard_normal(3)
         phase = rho + bias + np.where((prn == 7) & (k >= 20), jump, 0.0)
         continuous = np.array([True, k != 20, True])  # the slip detector flags PRN 7
-        out, variance, count = smoothing.update(k, prn, code, phase, continuous, 0.25, 0.0)
+        out, variance, count = smoothing.update(
+            k, prn, code, phase, continuous, code_variance=0.25, phase_variance=0.0
+        )
         if k == 20:
             assert count.tolist() == [21, 1, 21]
             assert out[1] == pytest.approx(code[1], abs=1e-6) and variance[1] == 0.25  # raw code
     assert count.tolist() == [30, 10, 30]
     assert abs(out[1] - rho[1]) < 4 * 0.5 / np.sqrt(10)  # the slip does not leak in
     # A satellite missing for an epoch restarts when it returns; the others carry on.
-    smoothing.update(30, prn[[0, 2]], rho[[0, 2]], (rho + bias)[[0, 2]], [True, True], 0.25, 0)
-    _, _, count = smoothing.update(31, prn, rho, rho + bias, [True] * 3, 0.25, 0.0)
+    smoothing.update(
+        30,
+        prn[[0, 2]],
+        rho[[0, 2]],
+        (rho + bias)[[0, 2]],
+        [True, True],
+        code_variance=0.25,
+        phase_variance=0,
+    )
+    _, _, count = smoothing.update(
+        31, prn, rho, rho + bias, [True] * 3, code_variance=0.25, phase_variance=0.0
+    )
     assert count.tolist() == [32, 1, 32]
 
 
@@ -99,7 +119,9 @@ def test_an_unflagged_slip_biases_the_smoothed_code():
     jump = 3 * 0.1903
     for k in range(11):
         phase = 100.0 + (jump if k == 10 else 0.0)
-        out, _, _ = smoothing.update(k, [4], [0.0], [phase], [True], 0.25, 0.0)
+        out, _, _ = smoothing.update(
+            k, [4], [0.0], [phase], [True], code_variance=0.25, phase_variance=0.0
+        )
     assert out[0] == pytest.approx(jump * (1 - 1 / 11))
 
 
@@ -107,6 +129,6 @@ def test_bad_input():
     with pytest.raises(ValueError, match="window"):
         CarrierSmoothing(-1.0)
     smoothing = CarrierSmoothing(10.0)
-    smoothing.update(5.0, [1], [0.0], [0.0], [True], 1.0, 0.0)
+    smoothing.update(5.0, [1], [0.0], [0.0], [True], code_variance=1.0, phase_variance=0.0)
     with pytest.raises(ValueError, match="epochs must increase"):
-        smoothing.update(5.0, [1], [0.0], [0.0], [True], 1.0, 0.0)
+        smoothing.update(5.0, [1], [0.0], [0.0], [True], code_variance=1.0, phase_variance=0.0)

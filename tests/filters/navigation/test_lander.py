@@ -10,21 +10,13 @@ import pytest
 
 from filters.attitude import quaternion_to_rotation_vector, transition_matrix
 from filters.gaussian import chi2_band, mahalanobis_squared
+from filters.navigation import lander
 from filters.navigation.camera import PinholeCamera
 from filters.navigation.gravity import (
     EROS_DEGREE2,
     EROS_MU,
     EROS_REFERENCE_RADIUS,
     SphericalHarmonicGravity,
-)
-from filters.navigation.lander import (
-    DescentTrajectory,
-    LanderDynamics,
-    LanderModel,
-    LandmarkMap,
-    NadirPointing,
-    SiteFrame,
-    anchor_pixels,
 )
 from lightcurve.studies.landing import (
     LandingScenario,
@@ -35,7 +27,7 @@ from lightcurve.studies.landing import (
     navigation_errors,
 )
 
-SITE = SiteFrame(np.array([EROS_REFERENCE_RADIUS, 0.0, 0.0]))
+SITE = lander.SiteFrame(np.array([EROS_REFERENCE_RADIUS, 0.0, 0.0]))
 SPIN = np.array([0.0, 0.0, 2 * math.pi / (5.27 * 3600)])
 GRAVITY = SphericalHarmonicGravity.from_coefficients(EROS_MU, EROS_REFERENCE_RADIUS, EROS_DEGREE2)
 
@@ -43,7 +35,7 @@ GRAVITY = SphericalHarmonicGravity.from_coefficients(EROS_MU, EROS_REFERENCE_RAD
 def make_scenario(
     duration: float = 103.0, settle: int = 50, iterations: int = 10, estimate_attitude: bool = True
 ) -> LandingScenario:
-    trajectory = DescentTrajectory(
+    trajectory = lander.DescentTrajectory(
         np.array([8.0, 5.0, 4.0]),
         np.array([-0.1, -0.1, -0.1]),
         np.array([0.5, 0.3, 0.3]),
@@ -51,15 +43,17 @@ def make_scenario(
         duration,
     )
     camera = PinholeCamera.from_fov(69.0, 1024)
-    model = LanderModel(
-        dynamics=LanderDynamics(GRAVITY, SPIN).feedforward(trajectory, SITE),
-        pointing=NadirPointing(SITE, np.radians([3.0, 3.0, 3.0]), np.array([40.0, 55.0, 70.0])),
-        landmarks=LandmarkMap.jittered_grid(
+    model = lander.LanderModel(
+        dynamics=lander.LanderDynamics(GRAVITY, SPIN).feedforward(trajectory, SITE),
+        pointing=lander.NadirPointing(
+            SITE, np.radians([3.0, 3.0, 3.0]), np.array([40.0, 55.0, 70.0])
+        ),
+        landmarks=lander.LandmarkMap.jittered_grid(
             SITE, (-3.0, 12.0, -3.0, 9.0), 0.1, 0.05, np.random.default_rng(7)
         ),
         camera=camera,
         pixel_sigma=0.06,
-        anchors=anchor_pixels(camera, 10),
+        anchors=lander.anchor_pixels(camera, 10),
         dt=1.0,
         acceleration_psd=1e-5**2,
         attitude_psd=math.radians(0.002) ** 2,
@@ -198,8 +192,10 @@ def test_draws_are_seeded_and_have_the_process_noise_statistics():
 
 def test_bad_inputs_are_rejected():
     with pytest.raises(ValueError, match="spin axis"):
-        SiteFrame(np.array([0.0, 0.0, 1000.0]))
+        lander.SiteFrame(np.array([0.0, 0.0, 1000.0]))
     with pytest.raises(ValueError, match="duration"):
-        DescentTrajectory(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), 0.0)
+        lander.DescentTrajectory(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), 0.0)
     with pytest.raises(ValueError, match="extent"):
-        LandmarkMap.jittered_grid(SITE, (1.0, 0.0, 0.0, 1.0), 0.1, 0.0, np.random.default_rng(0))
+        lander.LandmarkMap.jittered_grid(
+            SITE, (1.0, 0.0, 0.0, 1.0), 0.1, 0.0, np.random.default_rng(0)
+        )

@@ -1,16 +1,30 @@
 """Starlink v1.5 end-to-end forward-model check on the Pomenis observations."""
 
+from importlib import resources
+
 import numpy as np
 
 from filters.attitude import attitude_matrix
 from lightcurve.datasets.starlink import (
     CHASSIS_AREA_M2,
+    POMENIS_PATH,
     SOLAR_ARRAY_AREA_M2,
     pomenis_geometry,
     predict_pomenis,
     read_pomenis,
     starlink_model,
 )
+
+
+def test_observations_are_package_data():
+    """Read through importlib.resources from the installed package, so a wheel carries them
+    (`.ci/wheel-check` reads them from a wheel installed into a fresh environment)."""
+    packaged = resources.files("lightcurve").joinpath(
+        "data", "starlink", "pomenis_observations.csv"
+    )
+    assert packaged.is_file()
+    assert POMENIS_PATH.samefile(str(packaged))
+    assert len(read_pomenis()) == 1173
 
 
 def test_model_surfaces():
