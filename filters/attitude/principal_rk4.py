@@ -104,6 +104,7 @@ def body_chains(
     back: np.ndarray,
     frame: np.ndarray,
     offsets: np.ndarray,
+    *,
     max_step: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Body-frame states at every offset of states given in principal axes: one RK4 chain

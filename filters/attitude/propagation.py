@@ -450,7 +450,7 @@ def _trajectory(
     if xp is _NUMPY_NAMESPACE:  # the compiled chains write body-frame (c, E, M) states
         from filters.attitude.principal_rk4 import body_chains
 
-        q_out, w_out = body_chains(q_c, w_c, p, back, frame, offsets, max_step)
+        q_out, w_out = body_chains(q_c, w_c, p, back, frame, offsets, max_step=max_step)
     else:  # torch (autograd, GPU): one block, stacked
         states = _chains(q_c, w_c, p, offsets, max_step)
         q_p = xp.stack([s[0] for s in states], axis=1)

@@ -77,7 +77,7 @@ def residual_jacobian(
     jacobian : (N, E[+6], p) tensor
     """
     base = _trajectory(problem, q0, v, shape, epochs, t_start)
-    r = _residuals(problem, q0, v, shape, epochs, base, prior)
+    r = _residuals(problem, q0, v, shape, epochs, base, prior=prior)
     return r, _jacobian(problem, q0, v, shape, epochs, base, prior=prior, t_start=t_start)
 
 
@@ -102,6 +102,7 @@ def _residuals(
     shape: torch.Tensor,
     epochs: Any,
     trajectory: torch.Tensor,
+    *,
     prior: Prior | None,
 ) -> torch.Tensor:
     """Normalised residuals of a trajectory ``(N, E, 4)`` (with the prior's whitened
@@ -234,7 +235,7 @@ def refine(
         q_trial = quaternion_multiply(rotation_vector_to_quaternion(step[:, :3]), q)
         v_trial = v + step[:, 3:]
         base = _trajectory(problem, q_trial, v_trial, shape, epochs, t_start)
-        r_trial = _residuals(problem, q_trial, v_trial, shape, epochs, base, prior)
+        r_trial = _residuals(problem, q_trial, v_trial, shape, epochs, base, prior=prior)
         chi2_trial = torch.nan_to_num((r_trial * r_trial).sum(dim=1), nan=math.inf)
         better = chi2_trial < chi2
         progress_made = better & (chi2 - chi2_trial > 1e-4 * chi2)
