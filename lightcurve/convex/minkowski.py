@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import HalfspaceIntersection
 from threadpoolctl import threadpool_limits
 
-from lightcurve.convex.mass import solid_properties
+from shapes.mass import solid_properties
 
 if TYPE_CHECKING:
     from shapes import FacetModel
@@ -337,9 +337,9 @@ def minkowski_polyhedron(
             f"(largest area mismatch {np.max(np.abs(gradient)):.2e} > tol {tol:.1e})"
         )
     vertices, faces = p.vertices, _fan(p)
-    mass = solid_properties(vertices, faces)
-    vertices = vertices - mass.centroid
-    vertices *= (volume / mass.volume) ** (1 / 3)
+    mass = solid_properties(vertices[faces])
+    vertices = vertices - mass.center_of_mass
+    vertices *= (volume / mass.measure) ** (1 / 3)
     return vertices, faces
 
 
@@ -360,8 +360,8 @@ def equivalent_ellipsoid(shape: FacetModel | tuple[np.ndarray, np.ndarray]) -> n
         ``(a, b, c) / R_eq``, descending.
     """
     vertices, faces = (shape.vertices, shape.faces) if hasattr(shape, "faces") else shape
-    props = solid_properties(vertices, faces)
+    props = solid_properties(vertices[faces])
     moments = np.linalg.eigvalsh(props.inertia)
-    axes = np.sqrt(np.clip(5.0 * (moments.sum() - 2 * moments) / (2 * props.volume), 0, None))
-    radius = (3 * props.volume / (4 * np.pi)) ** (1 / 3)
+    axes = np.sqrt(np.clip(5.0 * (moments.sum() - 2 * moments) / (2 * props.measure), 0, None))
+    radius = (3 * props.measure / (4 * np.pi)) ** (1 / 3)
     return np.sort(axes)[::-1] / radius
