@@ -22,118 +22,20 @@ arrays
     the helpers every kernel above is written with, public for kernels outside the core.
 """
 
-from filters.attitude.inertia import (
-    InertiaError,
-    inertia_from_normalized,
-    inertia_from_tanh,
-    inertia_ratios,
-    normalized_from_inertia,
-    principal_axes,
-    ratios_from_tanh,
-    tanh_from_inertia,
-    validate_inertia,
-)
-from filters.attitude.jacobians import (
-    error_state_matrix,
-    euler_rate_jacobian,
-    euler_rate_jacobian_normalized,
-    euler_rate_jacobian_tanh,
-    state_jacobian,
-    transition_matrix,
-)
-from filters.attitude.kinematics import (
-    cross_matrix,
-    euler_rate,
-    euler_rate_principal,
-    omega_matrix,
-    quaternion_rate,
-    state_derivative,
-    xi_matrix,
-)
-from filters.attitude.propagation import (
-    PrincipalInertia,
-    axisymmetric_solution,
-    propagate,
-    propagate_rk4,
-    propagate_torque_free,
-    rk4,
-    rk4_step,
-    torque_free_derivative,
-    torque_free_trajectory,
-)
-from filters.attitude.quaternion import (
-    attitude_angle,
-    attitude_matrix,
-    axis_angle_to_quaternion,
-    euler321_to_quaternion,
-    grp_to_quaternion,
-    mrp_to_quaternion,
-    quaternion_canonical,
-    quaternion_conjugate,
-    quaternion_from_matrix,
-    quaternion_inverse,
-    quaternion_mean,
-    quaternion_multiply,
-    quaternion_normalize,
-    quaternion_to_euler321,
-    quaternion_to_grp,
-    quaternion_to_mrp,
-    quaternion_to_rotation_vector,
-    random_quaternion,
-    rotate,
-    rotation_vector_to_quaternion,
-)
+from filters.attitude import inertia, jacobians, kinematics, propagation, quaternion
+from filters.attitude.inertia import *  # noqa: F403
+from filters.attitude.jacobians import *  # noqa: F403
+from filters.attitude.kinematics import *  # noqa: F403
+from filters.attitude.propagation import *  # noqa: F403
+from filters.attitude.quaternion import *  # noqa: F403
 
-__all__ = [
-    "InertiaError",
-    "PrincipalInertia",
-    "attitude_angle",
-    "attitude_matrix",
-    "axis_angle_to_quaternion",
-    "axisymmetric_solution",
-    "cross_matrix",
-    "error_state_matrix",
-    "euler321_to_quaternion",
-    "euler_rate",
-    "euler_rate_jacobian",
-    "euler_rate_jacobian_normalized",
-    "euler_rate_jacobian_tanh",
-    "euler_rate_principal",
-    "grp_to_quaternion",
-    "inertia_from_normalized",
-    "inertia_from_tanh",
-    "inertia_ratios",
-    "mrp_to_quaternion",
-    "normalized_from_inertia",
-    "omega_matrix",
-    "principal_axes",
-    "propagate",
-    "propagate_rk4",
-    "propagate_torque_free",
-    "quaternion_canonical",
-    "quaternion_conjugate",
-    "quaternion_from_matrix",
-    "quaternion_inverse",
-    "quaternion_mean",
-    "quaternion_multiply",
-    "quaternion_normalize",
-    "quaternion_rate",
-    "quaternion_to_euler321",
-    "quaternion_to_grp",
-    "quaternion_to_mrp",
-    "quaternion_to_rotation_vector",
-    "random_quaternion",
-    "ratios_from_tanh",
-    "rk4",
-    "rk4_step",
-    "rotate",
-    "rotation_vector_to_quaternion",
-    "state_derivative",
-    "state_jacobian",
-    "tanh_from_inertia",
-    "torque_free_derivative",
-    "torque_free_trajectory",
-    "transition_matrix",
-    "validate_inertia",
-    "xi_matrix",
-]
+# The public names are those of the submodules (each lists its own in ``__all__``).
+__all__ = sorted(
+    [
+        *inertia.__all__,
+        *jacobians.__all__,
+        *kinematics.__all__,
+        *propagation.__all__,
+        *quaternion.__all__,
+    ]
+)
