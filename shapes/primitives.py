@@ -53,6 +53,32 @@ def _materials(defaults: dict[str, Material], override: Materials) -> dict[str, 
     return {**defaults, **dict(override or {})}
 
 
+def _model(
+    part: Part,
+    groups: dict[str, Material],
+    materials: Materials,
+    name: str,
+    provenance: dict[str, object],
+    *,
+    group_index: np.ndarray | None = None,
+    **mass_properties: object,
+) -> FacetModel:
+    """A primitive's model: ``groups`` (name → default material) in the order of
+    ``group_index``, the defaults overridden by ``materials``; ``mass_properties`` are the
+    ``inertia``, ``mass`` and ``center_of_mass`` of `FacetModel` where they are given."""
+    vertices, faces = part
+    return FacetModel(
+        vertices,
+        faces,
+        group_index=group_index,
+        group_names=list(groups),
+        materials=_materials(groups, materials),
+        name=name,
+        provenance=provenance,
+        **mass_properties,
+    )
+
+
 def _positive(**values: float) -> None:
     for key, value in values.items():
         if not np.all(np.isfinite(value)) or np.any(np.asarray(value) <= 0):
@@ -139,16 +165,15 @@ def plate(
     _positive(width=width, height=height)
     front = _sheet(np.zeros(3), np.eye(3)[0], np.eye(3)[1], (width, height), subdivisions)
     back = (front[0].copy(), front[1][:, ::-1])
-    groups = ["front", "back"]
-    vertices, faces, index = _assemble([("front", front), ("back", back)], groups)
-    return FacetModel(
-        vertices,
-        faces,
+    groups = {"front": SOLAR_CELL, "back": ARRAY_BACK}
+    vertices, faces, index = _assemble([("front", front), ("back", back)], list(groups))
+    return _model(
+        (vertices, faces),
+        groups,
+        materials,
+        name,
+        {"source": f"shapes.primitives.plate({width}, {height})"},
         group_index=index,
-        group_names=groups,
-        materials=_materials({"front": SOLAR_CELL, "back": ARRAY_BACK}, materials),
-        name=name,
-        provenance={"source": f"shapes.primitives.plate({width}, {height})"},
     )
 
 
@@ -161,32 +186,12 @@ def box(
 ) -> FacetModel:
     """Closed box of edge lengths ``size`` (x, y, z), m; one group ``body`` (default MLI)."""
     _positive(size=np.asarray(size, float))
-    vertices, faces = _box_part(size, (0.0, 0.0, 0.0), subdivisions)
-    return FacetModel(
-        vertices,
-        faces,
-        materials=_materials({"body": MLI}, materials),
-        name=name,
-        provenance={"source": f"shapes.primitives.box({list(map(float, size))})"},
-    )
-
-
-def _grouped_by_geometry(
-    mesh: trimesh.Trimesh,
-    group_index: np.ndarray,
-    groups: dict[str, Material],
-    materials: Materials,
-    name: str,
-    source: str,
-) -> FacetModel:
-    return FacetModel(
-        mesh.vertices,
-        mesh.faces,
-        group_index=group_index,
-        group_names=list(groups),
-        materials=_materials(groups, materials),
-        name=name,
-        provenance={"source": source},
+    return _model(
+        _box_part(size, (0.0, 0.0, 0.0), subdivisions),
+        {"body": MLI},
+        materials,
+        name,
+        {"source": f"shapes.primitives.box({list(map(float, size))})"},
     )
 
 
@@ -205,13 +210,13 @@ def cylinder(
     """
     _positive(radius=radius, height=height)
     mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
-    return _grouped_by_geometry(
-        mesh,
-        (np.abs(mesh.face_normals[:, 2]) > 0.5).astype(int),
+    return _model(
+        (mesh.vertices, mesh.faces),
         {"side": ALUMINIUM, "ends": WHITE_PAINT},
         materials,
         name,
-        f"shapes.primitives.cylinder({radius}, {height}, sections={sections})",
+        {"source": f"shapes.primitives.cylinder({radius}, {height}, sections={sections})"},
+        group_index=(np.abs(mesh.face_normals[:, 2]) > 0.5).astype(int),
     )
 
 
@@ -244,13 +249,16 @@ def rocket_body(
     profile = np.array([[0.0, 0.0], [radius, 0.0], [radius, length], [0.0, length + nose_length]])
     mesh = trimesh.creation.revolve(profile, sections=sections)
     aft, nose = mesh.face_normals[:, 2] < -0.99, mesh.triangles_center[:, 2] > length
-    return _grouped_by_geometry(
-        mesh,
-        np.where(aft, 0, np.where(nose, 2, 1)),
+    source = (
+        f"shapes.primitives.rocket_body({radius}, {length}, {nose_length}, sections={sections})"
+    )
+    return _model(
+        (mesh.vertices, mesh.faces),
         {"aft": BLACK_PAINT, "body": WHITE_PAINT, "nose": WHITE_PAINT},
         materials,
         name,
-        f"shapes.primitives.rocket_body({radius}, {length}, {nose_length}, sections={sections})",
+        {"source": source},
+        group_index=np.where(aft, 0, np.where(nose, 2, 1)),
     )
 
 
@@ -307,8 +315,8 @@ def box_wing(
         parts.append(("solar_array", front))
         parts.append(("array_back", (front[0].copy(), front[1][:, ::-1])))
         wing_parts.append(front)
-    groups = ["bus", "solar_array", "array_back", "yoke"]
-    vertices, faces, index = _assemble(parts, groups)
+    groups = {"bus": MLI, "solar_array": SOLAR_CELL, "array_back": ARRAY_BACK, "yoke": ALUMINIUM}
+    vertices, faces, index = _assemble(parts, list(groups))
 
     def solid(part: Part, kg: float) -> mass_props.MassProperties:
         props = mass_props.solid_properties(part[0][part[1]])
@@ -320,21 +328,17 @@ def box_wing(
         + [solid(p, yoke_mass) for g, p in parts if g == "yoke"]
         + [mass_props.shell_properties(p[0][p[1]], array_areal_density) for p in wing_parts]
     )
-    return FacetModel(
-        vertices,
-        faces,
-        group_index=index,
-        group_names=groups,
-        materials=_materials(
-            {"bus": MLI, "solar_array": SOLAR_CELL, "array_back": ARRAY_BACK, "yoke": ALUMINIUM},
-            materials,
-        ),
-        name=name,
-        provenance={
+    return _model(
+        (vertices, faces),
+        groups,
+        materials,
+        name,
+        {
             "source": "shapes.primitives.box_wing",
             "array_normal": normal.tolist(),
             "span_m": float(bus_size[1] + 2 * (yoke_length + wing_length)),
         },
+        group_index=index,
         inertia=assembly.inertia,
         mass=assembly.mass,
         center_of_mass=assembly.center_of_mass,
@@ -369,13 +373,10 @@ def ellipsoid(
     if int(subdivisions) != subdivisions or not 0 <= subdivisions <= 7:
         raise ShapeError(f"subdivisions must be an integer in 0..7, got {subdivisions!r}")
     mesh = trimesh.creation.icosphere(subdivisions=int(subdivisions))
-    return FacetModel(
-        np.asarray(mesh.vertices) * radii,
-        mesh.faces,
-        group_names=["surface"],
-        materials=_materials({"surface": REGOLITH}, materials),
-        name=name,
-        provenance={
-            "source": f"shapes.primitives.ellipsoid({radii.tolist()}, {int(subdivisions)})"
-        },
+    return _model(
+        (np.asarray(mesh.vertices) * radii, mesh.faces),
+        {"surface": REGOLITH},
+        materials,
+        name,
+        {"source": f"shapes.primitives.ellipsoid({radii.tolist()}, {int(subdivisions)})"},
     )
