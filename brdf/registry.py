@@ -142,6 +142,34 @@ class ModelInfo:
         return "\n".join(lines)
 
 
+def _fraction(name: str, meaning: str, default: float) -> ParameterSpec:
+    """A parameter in [0, 1] (albedo, weight, reflectance), searched over all of it."""
+    return ParameterSpec(name, meaning, default, 0.0, 1.0, (0.0, 1.0))
+
+
+def _log_scaled(
+    name: str,
+    meaning: str,
+    default: float,
+    fit_range: tuple[float, float],
+    *,
+    lower_open: bool = False,
+    unit: str = "1",
+) -> ParameterSpec:
+    """A non-negative parameter (exponent, width, slope) searched on a logarithmic scale."""
+    return ParameterSpec(
+        name,
+        meaning,
+        default,
+        0.0,
+        math.inf,
+        fit_range,
+        lower_open=lower_open,
+        log_scale=True,
+        unit=unit,
+    )
+
+
 _ALBEDO = "albedo in [0, 1]"
 _MODELS: dict[str, ModelInfo] = {
     info.name: info
@@ -149,7 +177,7 @@ _MODELS: dict[str, ModelInfo] = {
         ModelInfo(
             name="lambert",
             formula="ρ = rd/π",
-            parameters=(ParameterSpec("rd", f"diffuse {_ALBEDO}", 0.5, 0.0, 1.0, (0.0, 1.0)),),
+            parameters=(_fraction("rd", f"diffuse {_ALBEDO}", 0.5),),
             constraints=(),
             reference="Lambert (1760)",
             vector=lambert,
@@ -159,13 +187,9 @@ _MODELS: dict[str, ModelInfo] = {
             name="phong",
             formula="ρ = rd/π + rs (n + 2)/(2π) max(0, R·V)^n, R = 2 (n·L) n − L",
             parameters=(
-                ParameterSpec("rd", f"diffuse {_ALBEDO}", 0.5, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec(
-                    "rs", "specular albedo at normal incidence", 0.3, 0.0, 1.0, (0.0, 1.0)
-                ),
-                ParameterSpec(
-                    "n", "specular exponent", 10.0, 0.0, math.inf, (0.1, 1e7), log_scale=True
-                ),
+                _fraction("rd", f"diffuse {_ALBEDO}", 0.5),
+                _fraction("rs", "specular albedo at normal incidence", 0.3),
+                _log_scaled("n", "specular exponent", 10.0, (0.1, 1e7)),
             ),
             constraints=("rd + rs ≤ 1",),
             reference="Phong (1975), energy-normalised (Lewis 1994)",
@@ -177,21 +201,10 @@ _MODELS: dict[str, ModelInfo] = {
             name="cook-torrance",
             formula="ρ = rd/π + rs D G F/(4 NL NV), Beckmann D, V-cavity G, Schlick F",
             parameters=(
-                ParameterSpec("rd", "diffuse weight", 0.3, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec("rs", "specular weight", 0.5, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec(
-                    "m",
-                    "Beckmann RMS facet slope",
-                    0.3,
-                    0.0,
-                    math.inf,
-                    (1e-4, 3.0),
-                    lower_open=True,
-                    log_scale=True,
-                ),
-                ParameterSpec(
-                    "f0", "Fresnel reflectance at normal incidence", 0.9, 0.0, 1.0, (0.0, 1.0)
-                ),
+                _fraction("rd", "diffuse weight", 0.3),
+                _fraction("rs", "specular weight", 0.5),
+                _log_scaled("m", "Beckmann RMS facet slope", 0.3, (1e-4, 3.0), lower_open=True),
+                _fraction("f0", "Fresnel reflectance at normal incidence", 0.9),
             ),
             constraints=("rd + rs ≤ 1",),
             reference="Cook & Torrance (1981)",
@@ -206,28 +219,10 @@ _MODELS: dict[str, ModelInfo] = {
                 " NH^((nu hu² + nv hv²)/(1 − NH²)) F/(VH max(NL, NV))"
             ),
             parameters=(
-                ParameterSpec("rd", f"diffuse {_ALBEDO}", 0.3, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec(
-                    "rs", "specular reflectance at normal incidence", 0.3, 0.0, 1.0, (0.0, 1.0)
-                ),
-                ParameterSpec(
-                    "nu",
-                    "exponent along the tangent u",
-                    100.0,
-                    0.0,
-                    math.inf,
-                    (0.1, 1e7),
-                    log_scale=True,
-                ),
-                ParameterSpec(
-                    "nv",
-                    "exponent along v = n × u",
-                    100.0,
-                    0.0,
-                    math.inf,
-                    (0.1, 1e7),
-                    log_scale=True,
-                ),
+                _fraction("rd", f"diffuse {_ALBEDO}", 0.3),
+                _fraction("rs", "specular reflectance at normal incidence", 0.3),
+                _log_scaled("nu", "exponent along the tangent u", 100.0, (0.1, 1e7)),
+                _log_scaled("nv", "exponent along v = n × u", 100.0, (0.1, 1e7)),
             ),
             constraints=("nu ≠ nv needs a tangent frame (tangent= or hu=, hv=)",),
             reference="Ashikhmin & Shirley (2000); Wetterer et al. (2014)",
@@ -238,21 +233,11 @@ _MODELS: dict[str, ModelInfo] = {
             name="lommel-seeliger",
             formula="ρ = w/(4π) (a exp(−α/d) + k α + 1) (1/(NL + NV) + c), cos α = L·V",
             parameters=(
-                ParameterSpec(
-                    "w", "single-scattering albedo", 1.0, 0.0, math.inf, (1e-4, 1e3), log_scale=True
-                ),
+                _log_scaled("w", "single-scattering albedo", 1.0, (1e-4, 1e3)),
                 ParameterSpec("c", "weight of the Lambert term", 0.1, 0.0, math.inf, (0.0, 10.0)),
                 ParameterSpec("a", "opposition-effect amplitude", 0.5, 0.0, math.inf, (0.0, 10.0)),
-                ParameterSpec(
-                    "d",
-                    "opposition-effect width",
-                    0.1,
-                    0.0,
-                    math.inf,
-                    (1e-3, 10.0),
-                    lower_open=True,
-                    log_scale=True,
-                    unit="rad",
+                _log_scaled(
+                    "d", "opposition-effect width", 0.1, (1e-3, 10.0), lower_open=True, unit="rad"
                 ),
                 ParameterSpec(
                     "k",
@@ -276,45 +261,25 @@ _MODELS: dict[str, ModelInfo] = {
                 "Beckmann narrow lobes, Schlick F per lobe, V-cavity G"
             ),
             parameters=(
-                ParameterSpec("rd", "diffuse weight", 0.05, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec("rb", "broad-lobe weight", 0.2, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec(
+                _fraction("rd", "diffuse weight", 0.05),
+                _fraction("rb", "broad-lobe weight", 0.2),
+                _log_scaled(
                     "ab",
                     "broad-lobe Trowbridge–Reitz (GGX) roughness",
                     0.1,
-                    0.0,
-                    math.inf,
                     (1e-3, 3.0),
                     lower_open=True,
-                    log_scale=True,
                 ),
-                ParameterSpec(
-                    "fb",
-                    "broad-lobe Fresnel reflectance at normal incidence",
-                    1.0,
-                    0.0,
-                    1.0,
-                    (0.0, 1.0),
-                ),
-                ParameterSpec("rn", "narrow-lobe weight", 0.5, 0.0, 1.0, (0.0, 1.0)),
-                ParameterSpec(
+                _fraction("fb", "broad-lobe Fresnel reflectance at normal incidence", 1.0),
+                _fraction("rn", "narrow-lobe weight", 0.5),
+                _log_scaled(
                     "mn",
                     "narrow-lobe Beckmann RMS facet slope",
                     0.002,
-                    0.0,
-                    math.inf,
                     (1e-5, 0.1),
                     lower_open=True,
-                    log_scale=True,
                 ),
-                ParameterSpec(
-                    "fn",
-                    "narrow-lobe Fresnel reflectance at normal incidence",
-                    0.04,
-                    0.0,
-                    1.0,
-                    (0.0, 1.0),
-                ),
+                _fraction("fn", "narrow-lobe Fresnel reflectance at normal incidence", 0.04),
             ),
             constraints=("rd + rb + rn ≤ 1",),
             reference=(
