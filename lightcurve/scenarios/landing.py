@@ -48,9 +48,9 @@ def load_scenario(path: str | Path) -> LandingScenario:
         Naming the file, table and field of the first problem.
     """
     root = load_toml(path)
-    body, site_t, traj = root.table("body"), root.table("site"), root.table("trajectory")
-    cam_t, marks, noise = root.table("camera"), root.table("landmarks"), root.table("noise")
-    filt, plan = root.table("filter"), root.table("planner")
+    body, site_t, traj, cam_t, marks, noise, filt, plan = root.tables(
+        "body", "site", "trajectory", "camera", "landmarks", "noise", "filter", "planner"
+    )
 
     body.string("name", "")
     degree = body.integer("gravity_degree", minimum=0)

@@ -43,12 +43,8 @@ def load_relnav_scenario(path: str | Path) -> tuple[ApproachScenario, int]:
         Naming the file, table and field of the first problem.
     """
     root = load_toml(path)
-    orbit, traj = root.table("orbit"), root.table("trajectory")
-    control, imu, sensors_table = root.table("control"), root.table("imu"), root.table("sensors")
-    modes_table, filt, evaluation = (
-        root.table("modes"),
-        root.table("filter"),
-        root.table("evaluation"),
+    orbit, traj, control, imu, sensors_table, modes_table, filt, evaluation = root.tables(
+        "orbit", "trajectory", "control", "imu", "sensors", "modes", "filter", "evaluation"
     )
 
     sensors = {}

@@ -39,8 +39,9 @@ def load_stereo_scenario(path: str | Path) -> StereoScenario:
         Naming the file, table and field of the first problem.
     """
     root = load_toml(path)
-    orbit, cam, target = root.table("orbit"), root.table("camera"), root.table("target")
-    noise, sim, filt = root.table("noise"), root.table("simulation"), root.table("filter")
+    orbit, cam, target, noise, sim, filt = root.tables(
+        "orbit", "camera", "target", "noise", "simulation", "filter"
+    )
 
     n = mean_motion(EARTH_RADIUS + 1e3 * orbit.number("altitude_km", positive=True), EARTH_MU)
     width = cam.integer("image_width_px", minimum=1)

@@ -76,6 +76,10 @@ class TomlTable:
             raise self.error(field, "must be a table")
         return TomlTable(value, self.path, f"{self.name}.{field}" if self.name else field)
 
+    def tables(self, *fields: str) -> tuple[TomlTable, ...]:
+        """Required sub-tables, in the order of ``fields``."""
+        return tuple(self.table(field) for field in fields)
+
     def optional_table(self, field: str) -> TomlTable | None:
         """A sub-table, or ``None`` when absent."""
         return self.table(field) if self.has(field) else self._get(field, None)
