@@ -78,10 +78,12 @@ def quaternion_conjugate(q: Any) -> Any:
     Parameters
     ----------
     q : (..., 4) array
+        Quaternions of any norm.
 
     Returns
     -------
     (..., 4) array
+        Of the same norm; for unit ``q`` the opposite rotation.
     """
     xp, (q,) = as_arrays(q)
     return xp.concat([-q[..., :3], q[..., 3:]], axis=-1)
@@ -93,10 +95,12 @@ def quaternion_inverse(q: Any) -> Any:
     Parameters
     ----------
     q : (..., 4) array
+        Non-zero quaternions.
 
     Returns
     -------
     (..., 4) array
+        ``q⁻¹`` with ``q ⊗ q⁻¹ = [0, 0, 0, 1]``.
     """
     xp, (q,) = as_arrays(q)
     return quaternion_conjugate(q) / xp.sum(q * q, axis=-1, keepdims=True)
@@ -113,6 +117,7 @@ def quaternion_normalize(q: Any) -> Any:
     Returns
     -------
     (..., 4) array
+        ``q / |q|``.
 
     Raises
     ------
@@ -133,10 +138,12 @@ def quaternion_canonical(q: Any) -> Any:
     Parameters
     ----------
     q : (..., 4) array
+        Quaternions.
 
     Returns
     -------
     (..., 4) array
+        ``q`` where ``q4 ≥ 0``, else ``−q``.
     """
     xp, (q,) = as_arrays(q)
     return xp.where(q[..., 3:] < 0, -q, q)
@@ -358,10 +365,12 @@ def mrp_to_quaternion(p: Any) -> Any:
     Parameters
     ----------
     p : (..., 3) array
+        Modified Rodrigues parameters (``|p| > 1`` describes the longer rotation).
 
     Returns
     -------
     (..., 4) array
+        Unit quaternions, with ``q4 < 0`` where ``|p| > 1``.
     """
     return grp_to_quaternion(p, a=1.0, f=1.0)
 
@@ -372,10 +381,12 @@ def quaternion_to_mrp(q: Any) -> Any:
     Parameters
     ----------
     q : (..., 4) array
+        Unit quaternions (``q`` and ``−q`` give the same parameters).
 
     Returns
     -------
     (..., 3) array
+        ``p = f q_v / (a + q4)`` of :func:`quaternion_to_grp` with ``a = f = 1``.
     """
     return quaternion_to_grp(q, a=1.0, f=1.0)
 
