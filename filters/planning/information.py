@@ -13,7 +13,7 @@ to the planner (only handed back to the model), covariances are ``(B, n, n)``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -197,6 +197,31 @@ class Forecast:
             self.process_noise[offset:],
             self.information[offset:],
         )
+
+    def covariances(self, taken: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Predicted and filtered covariances ``P_{k+j|k+j−1}``, ``P_{k+j|k+j}``, ``j = 1 … L``,
+        given the observations ``taken`` (each applies ``P⁺ = (P⁻⁻¹ + F)⁻¹``).
+
+        Parameters
+        ----------
+        taken : (..., B, L) bool array
+            ``taken[..., b, j − 1]``: run ``b`` observes at step ``k + j``; leading axes (e.g.
+            candidate schedules) broadcast against the runs.
+
+        Yields
+        ------
+        prior, posterior : (..., B, n, n) numpy.ndarray
+            Step by step, the covariance before and after the step's observation.
+        """
+        p = np.broadcast_to(self.covariance, (*taken.shape[:-1], *self.covariance.shape[-2:]))
+        for j in range(self.length):
+            p = predict_covariance(p, self.transition[j], self.process_noise[j])
+            prior = p
+            observed = taken[..., j]
+            if observed.any():
+                updated = posterior_covariance(p, self.information[j])
+                p = np.where(observed[..., None, None], updated, p)
+            yield prior, p
 
     def select(self, runs: np.ndarray) -> Forecast:
         """The forecast of a subset of runs (index array over ``B``)."""

@@ -76,14 +76,8 @@ def _filter_covariances(ahead: Forecast, taken: np.ndarray) -> tuple[np.ndarray,
     """Predicted and filtered covariances ``P_{j|j−1}``, ``P_{j|j}`` along a forecast."""
     prior = np.empty_like(ahead.transition)
     post = np.empty_like(ahead.transition)
-    p = ahead.covariance
-    for j in range(ahead.length):
-        p = predict_covariance(p, ahead.transition[j], ahead.process_noise[j])
-        prior[j] = p
-        if taken[:, j].any():
-            updated = posterior_covariance(p, ahead.information[j])
-            p = np.where(taken[:, j, None, None], updated, p)
-        post[j] = p
+    for j, (predicted, filtered) in enumerate(ahead.covariances(taken)):
+        prior[j], post[j] = predicted, filtered
     return prior, post
 
 

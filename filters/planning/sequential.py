@@ -32,8 +32,6 @@ from filters.planning.information import (
     PlanningModel,
     covariance_measure,
     forecast,
-    posterior_covariance,
-    predict_covariance,
 )
 
 __all__ = [
@@ -144,14 +142,8 @@ class PosteriorRollout:
                 mask[s - 1, runs] = _base_schedule(s, length, int(left), s_max, settle)
         steps = forecast.step + np.arange(1, length + 1)
         weights = np.where(steps >= self.settle_step, 1.0, self.pre_settle_weight)
-        p = np.broadcast_to(forecast.covariance, (n_cand, *forecast.covariance.shape))
         cost = np.zeros((n_cand, batch))
-        for j in range(length):
-            p = predict_covariance(p, forecast.transition[j], forecast.process_noise[j])
-            take = mask[:, :, j]
-            if take.any():
-                post = posterior_covariance(p, forecast.information[j])
-                p = np.where(take[..., None, None], post, p)
+        for j, (_, p) in enumerate(forecast.covariances(mask)):
             if weights[j] != 0:
                 cost += weights[j] * covariance_measure(p, self.indices, self.measure)
         return cost
