@@ -213,7 +213,8 @@ class Forecast:
         prior, posterior : (..., B, n, n) numpy.ndarray
             Step by step, the covariance before and after the step's observation.
         """
-        p = np.broadcast_to(self.covariance, (*taken.shape[:-1], *self.covariance.shape[-2:]))
+        runs = np.broadcast_shapes(taken.shape[:-1], self.covariance.shape[:-2])
+        p = np.broadcast_to(self.covariance, (*runs, *self.covariance.shape[-2:]))
         for j in range(self.length):
             p = predict_covariance(p, self.transition[j], self.process_noise[j])
             prior = p
