@@ -208,13 +208,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         print(json.dumps(_run_job(args.child, args.seed)))
         return 0
-    result = compare(args.jobs.split(","), args.baseline, args.repeats, args.seed)
-    text = json.dumps(result, indent=1)
-    print(text)
-    if args.out:
-        from lightcurve.atomic import atomic_write_json
+    # Imported after the child's branch: a child runs this file on the baseline's code,
+    # which may predate the module.
+    from benchmarks._report import emit_report
 
-        atomic_write_json(args.out, result)
+    result = compare(args.jobs.split(","), args.baseline, args.repeats, args.seed)
+    emit_report(result, args.out, indent=1)
     return 0
 
 

@@ -16,7 +16,6 @@ the "quiet" phase is only as quiet as the other tenants allow.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import os
 import shlex
@@ -27,7 +26,7 @@ import time
 from pathlib import Path
 
 from benchmarks._machine import machine_info
-from lightcurve.atomic import atomic_write_json
+from benchmarks._report import emit_report
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -156,10 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": machine_info(),
         "results": results,
     }
-    text = json.dumps(report, indent=2)
-    print(text)
-    if args.out:
-        atomic_write_json(args.out, report)
+    emit_report(report, args.out)
     return 0
 
 

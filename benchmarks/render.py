@@ -41,6 +41,7 @@ import numpy as np
 import torch
 
 from benchmarks._machine import machine_info
+from benchmarks._timing import best_time
 from filters.attitude import random_quaternion
 from lightcurve.kernels import get_num_threads, set_num_threads
 from lightcurve.reference import reference_flux
@@ -111,15 +112,6 @@ def batch_equals_single_calls(n: int = 10_000, seed: int = 1) -> dict:
         "batch_seconds": batch_s,
         "single_calls_seconds": single_s,
     }
-
-
-def best_time(func, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def material_shape(base, name: str):

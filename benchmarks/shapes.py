@@ -28,6 +28,7 @@ import torch  # noqa: E402
 
 import shapes  # noqa: E402
 from benchmarks._machine import machine_info  # noqa: E402
+from benchmarks._timing import best_time  # noqa: E402
 from filters.attitude import random_quaternion  # noqa: E402
 from lightcurve.render import Renderer  # noqa: E402
 from shapes import primitives  # noqa: E402
@@ -161,16 +162,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def _best(func, repeats: int) -> float:
-    """Best of ``repeats`` wall times of ``func()`` (the machine is shared), s."""
-    seconds = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        func()
-        seconds = min(seconds, time.perf_counter() - start)
-    return seconds
-
-
 def lookup_throughput(chunk: int, repeats: int) -> list[dict]:
     """Best-of-``repeats`` time of the joint lookup of one chunk of random ``(L, V)`` pairs
     (Itokawa, K = 768): numpy (compiled kernel) and torch (differentiable)."""
@@ -185,7 +176,7 @@ def lookup_throughput(chunk: int, repeats: int) -> list[dict]:
         else:
             args = tuple(torch.as_tensor(v, dtype=getattr(torch, dtype)) for v in (light, view))
         table.joint(args[0][:10], args[1][:10])  # compile or load the kernels
-        seconds = _best(lambda args=args: table.joint(*args), repeats)
+        seconds = best_time(lambda args=args: table.joint(*args), repeats)
         rows.append(
             {
                 "array": kind,

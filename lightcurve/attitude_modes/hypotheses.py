@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -167,13 +168,14 @@ def stabilised(
         rotation_vector_to_quaternion(delta), fit.q_ref[0] if profile == "inertial" else identity
     )
     covariance = np.linalg.inv(hessian)
-    return ModeHypothesis(
-        mode=label,
-        shape=model.names[shape],
-        chi2=chi2,
-        n_params=3,
-        log_evidence=log_evidence(chi2, log_prior, hessian),
-        consistent=consistent(chi2, n, 3, consistency_level),
+    return _weighed(
+        label,
+        model.names[shape],
+        chi2,
+        log_prior=log_prior,
+        hessian=hessian,
+        n_measurements=n,
+        consistency_level=consistency_level,
         offsets_deg=euler_offsets_deg(q_offset),
         offset_sigma_deg=np.rad2deg(np.sqrt(np.clip(np.diag(covariance), 0, None))),
         quaternion=q[-1],
@@ -237,17 +239,45 @@ def tumbling(
     log_prior = attitude_log_prior(symmetry_order) - math.log(4.0 / 3.0 * math.pi * omega_max**3)
     last = np.array([len(times) - 2, len(times) - 1]) if len(times) > 1 else np.array([0])
     q_end = problem.trajectory(cand.q, cand.omega, cand.k, cand.shape, last, t_start)[0].numpy()
-    return ModeHypothesis(
-        mode=TUMBLING,
-        shape=model.names[shape],
-        chi2=chi2,
-        n_params=6,
-        log_evidence=log_evidence(chi2, log_prior, hessian),
-        consistent=consistent(chi2, len(times), 6, consistency_level),
+    return _weighed(
+        TUMBLING,
+        model.names[shape],
+        chi2,
+        log_prior=log_prior,
+        hessian=hessian,
+        n_measurements=len(times),
+        consistency_level=consistency_level,
         offsets_deg=None,
         offset_sigma_deg=None,
         quaternion=q_end[-1],
         omega_rad_s=(
             cand.omega[0].numpy() if t_start == times[-1] else body_rates(times[last], q_end)[-1]
         ),
+    )
+
+
+def _weighed(
+    mode: str,
+    shape: str,
+    chi2: float,
+    *,
+    log_prior: float,
+    hessian: np.ndarray,
+    n_measurements: int,
+    consistency_level: float,
+    **state: Any,
+) -> ModeHypothesis:
+    """The hypothesis ``mode`` of ``shape`` fitted with ``chi2``, weighed: its Laplace
+    evidence (:func:`log_evidence`) and its ``χ²`` consistency test, with as many parameters
+    as ``hessian`` (``k × k``) has rows; ``state`` holds the remaining fields of
+    :class:`ModeHypothesis` (offsets, final attitude and rates)."""
+    n_params = len(hessian)
+    return ModeHypothesis(
+        mode=mode,
+        shape=shape,
+        chi2=chi2,
+        n_params=n_params,
+        log_evidence=log_evidence(chi2, log_prior, hessian),
+        consistent=consistent(chi2, n_measurements, n_params, consistency_level),
+        **state,
     )

@@ -1,10 +1,12 @@
-"""Argument types and options shared by the command modules (vectors, inertia, progress)."""
+"""Argument types and options shared by the command modules (vectors, inertia, progress,
+scenario studies)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -73,6 +75,37 @@ def inertia_tensor(text: str) -> np.ndarray:
     jxx, jyy, jzz = values[:3]
     jxy, jxz, jyz = values[3:] if values.size == 6 else (0.0, 0.0, 0.0)
     return np.array([[jxx, jxy, jxz], [jxy, jyy, jyz], [jxz, jyz, jzz]])
+
+
+def add_scenario_arguments(
+    parser: argparse.ArgumentParser,
+    scenario_help: str,
+    *,
+    runs: int | None = None,
+    seed: int | None = None,
+    seed_help: str = "random seed",
+) -> None:
+    """The arguments of a scenario study: ``SCENARIO``, ``--out DIR`` and optionally
+    ``--runs`` and ``--seed``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+    scenario_help : str
+        Help of the positional scenario TOML file.
+    runs : int, optional
+        Default of ``--runs`` (Monte Carlo runs); None: no ``--runs`` option.
+    seed : int, optional
+        Default of ``--seed``; None: no ``--seed`` option.
+    seed_help : str
+        Help of ``--seed``.
+    """
+    parser.add_argument("scenario", type=Path, help=scenario_help)
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    if runs is not None:
+        parser.add_argument("--runs", type=int, default=runs, help="Monte Carlo runs")
+    if seed is not None:
+        parser.add_argument("--seed", type=int, default=seed, help=seed_help)
 
 
 def add_progress_option(parser: argparse.ArgumentParser, what: str) -> None:

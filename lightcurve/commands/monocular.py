@@ -19,6 +19,8 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from lightcurve.commands._args import add_scenario_arguments
+
 NAME = "monocular"
 
 
@@ -30,10 +32,13 @@ ORDER = 60
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve monocular``."""
-    parser.add_argument("scenario", type=Path, help="scenario TOML file (docs/monocular.md)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--runs", type=int, default=1, help="Monte Carlo runs")
-    parser.add_argument("--seed", type=int, default=0, help="seed of every random stream")
+    add_scenario_arguments(
+        parser,
+        "scenario TOML file (docs/monocular.md)",
+        runs=1,
+        seed=0,
+        seed_help="seed of every random stream",
+    )
     parser.add_argument(
         "--measurements",
         type=Path,

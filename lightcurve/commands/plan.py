@@ -12,7 +12,8 @@ format is described in ``docs/planner.md``.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "plan"
 
@@ -25,10 +26,7 @@ ORDER = 64
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve plan``."""
-    parser.add_argument("scenario", type=Path, help="scenario TOML (docs/planner.md)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--runs", type=int, default=20, help="Monte Carlo runs")
-    parser.add_argument("--seed", type=int, default=1, help="random seed")
+    add_scenario_arguments(parser, "scenario TOML (docs/planner.md)", runs=20, seed=1)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 
 import numpy as np
+
+from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "relnav"
 
@@ -29,8 +30,7 @@ ORDER = 63
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve relnav``."""
-    parser.add_argument("scenario", type=Path, help="scenario TOML file")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    add_scenario_arguments(parser, "scenario TOML file")
     parser.add_argument(
         "--outlier-rate", type=float, default=0.0, help="fraction of optical fixes replaced by "
         "gross errors"

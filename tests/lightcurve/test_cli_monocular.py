@@ -14,8 +14,8 @@ from filters.attitude import attitude_angle, propagate
 from lightcurve.cli import main
 from lightcurve.scenarios import ScenarioError
 from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
+from tests.lightcurve._scenarios import SCENARIOS, edited_copy
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "scenarios"
 CONTRACT = {
     "observability_rank",
     "observability_singular_values",
@@ -32,12 +32,11 @@ CONTRACT = {
 
 def short_copy(tmp_path: Path, name: str, duration: float) -> Path:
     """A shipped scenario with a shorter run and a low Lie-derivative order (fast)."""
-    text = (SCENARIOS / name).read_text()
-    text = re.sub(r"duration_s = [0-9.]+", f"duration_s = {duration}", text)
-    text += "\n[observability]\nmax_order = 4\n"
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+    source = SCENARIOS / name
+    text = source.read_text() + "\n[observability]\nmax_order = 4\n"
+    return edited_copy(
+        tmp_path, source, {r"duration_s = [0-9.]+": f"duration_s = {duration}"}, text=text
+    )
 
 
 def test_shipped_scenarios_are_the_papers():
@@ -130,16 +129,18 @@ def test_bad_scenarios_name_the_field(tmp_path, capsys, old, new, message):
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
-def test_bad_measurement_rows_name_line_and_column(tmp_path):
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("t,q1,q2,q3,q4\n0,0,0,0,1\n1,0,0,x,1\n", r"line 3, column q3"),
+        ("t,q1,q2,q3,q4\n0,0,0,0,1\n0,0,0,0,1\n", r"line 3, column t: times must increase"),
+        ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", "missing column"),
+    ],
+)
+def test_bad_measurement_rows_name_line_and_column(tmp_path, text, message):
     csv = tmp_path / "m.csv"
-    csv.write_text("t,q1,q2,q3,q4\n0,0,0,0,1\n1,0,0,x,1\n")
-    with pytest.raises(ScenarioError, match=r"line 3, column q3"):
-        read_measurements(csv)
-    csv.write_text("t,q1,q2,q3,q4\n0,0,0,0,1\n0,0,0,0,1\n")
-    with pytest.raises(ScenarioError, match=r"line 3, column t: times must increase"):
-        read_measurements(csv)
-    csv.write_text("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n")
-    with pytest.raises(ScenarioError, match="missing column"):
+    csv.write_text(text)
+    with pytest.raises(ScenarioError, match=message):
         read_measurements(csv)
 
 

@@ -12,19 +12,19 @@ import pytest
 
 from lightcurve.cli import main
 from lightcurve.scenarios.relnav import load_relnav_scenario
+from tests.lightcurve._scenarios import SCENARIOS, edited_copy
 
-APPROACH = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "relnav_approach.toml"
+APPROACH = SCENARIOS / "relnav_approach.toml"
 CONTRACT = {"position_rms_m", "velocity_rms_m_s", "outliers_injected", "outliers_downweighted"}
 
 
 def short_copy(tmp_path: Path, text: str | None = None) -> Path:
-    """The approach scenario cut to 120 s with a 100 s transfer."""
-    text = APPROACH.read_text() if text is None else text
-    text = re.sub(r"duration_s = 6000.0", "duration_s = 120.0", text)
-    text = re.sub(r"approach_duration_s = [0-9.]+", "approach_duration_s = 100.0", text)
-    path = tmp_path / "short.toml"
-    path.write_text(text)
-    return path
+    """The approach scenario (or ``text``) cut to 120 s with a 100 s transfer."""
+    cut = {
+        r"duration_s = 6000.0": "duration_s = 120.0",
+        r"approach_duration_s = [0-9.]+": "approach_duration_s = 100.0",
+    }
+    return edited_copy(tmp_path, APPROACH, cut, text=text, name="short.toml")
 
 
 def test_shipped_scenario_is_the_papers():

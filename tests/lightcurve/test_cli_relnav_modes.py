@@ -11,8 +11,8 @@ import pytest
 
 from lightcurve.cli import main
 from lightcurve.scenarios.relnav import load_relnav_scenario
+from tests.lightcurve._scenarios import SCENARIOS, edited_copy
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "scenarios"
 GNSS_KEYS = {
     "position_rms_m",
     "velocity_rms_m_s",
@@ -25,15 +25,15 @@ GNSS_KEYS = {
 
 def short_copy(tmp_path: Path, name: str, edit: tuple[str, str] | None = None) -> Path:
     """A scenario cut to 100 s (70 s transfer), next to the shipped one's almanac path."""
-    text = (SCENARIOS / name).read_text()
-    text = re.sub(r"duration_s = 6000.0", "duration_s = 100.0", text)
-    text = re.sub(r"approach_duration_s = [0-9.]+", "approach_duration_s = 70.0", text)
-    text = text.replace('"../gnss/', f'"{SCENARIOS.parent / "gnss"}/')
+    source = SCENARIOS / name
+    text = source.read_text().replace('"../gnss/', f'"{SCENARIOS.parent / "gnss"}/')
     if edit is not None:
         text = text.replace(*edit, 1)
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+    cut = {
+        r"duration_s = 6000.0": "duration_s = 100.0",
+        r"approach_duration_s = [0-9.]+": "approach_duration_s = 70.0",
+    }
+    return edited_copy(tmp_path, source, cut, text=text)
 
 
 def test_each_mode_scenario_defines_the_three_modes():

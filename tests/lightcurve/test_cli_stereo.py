@@ -14,19 +14,16 @@ import pytest
 from filters.attitude import tanh_from_inertia
 from lightcurve.cli import main
 from lightcurve.scenarios.stereo import load_stereo_scenario
+from tests.lightcurve._scenarios import SCENARIOS, edited_copy
 
-NOMINAL = Path(__file__).resolve().parents[2] / "data" / "scenarios" / "stereo_nominal.toml"
+NOMINAL = SCENARIOS / "stereo_nominal.toml"
 RTMSE_KEYS = {"attitude_deg", "omega_rad_s", "position_m", "velocity_m_s", "inertia_k"}
 
 
 def short_copy(tmp_path: Path, text: str | None = None) -> Path:
-    """The nominal scenario with a 20 s simulation and a 10 s window."""
-    text = NOMINAL.read_text() if text is None else text
-    text = re.sub(r"duration_s = [0-9.]+", "duration_s = 20.0", text)
-    text = re.sub(r"window_s = [0-9.]+", "window_s = 10.0", text)
-    path = tmp_path / "short.toml"
-    path.write_text(text)
-    return path
+    """The nominal scenario (or ``text``) with a 20 s simulation and a 10 s window."""
+    cut = {r"duration_s = [0-9.]+": "duration_s = 20.0", r"window_s = [0-9.]+": "window_s = 10.0"}
+    return edited_copy(tmp_path, NOMINAL, cut, text=text, name="short.toml")
 
 
 def test_nominal_scenario_is_the_papers_nominal_case():

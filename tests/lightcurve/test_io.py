@@ -8,6 +8,7 @@ import pytest
 
 from lightcurve import io
 from lightcurve.observations import TRUTH_COLUMNS, ObservationError, Observations, validate_table
+from tests.lightcurve._round_trip import assert_csv_parquet_round_trip
 
 ROOT = Path(__file__).resolve().parents[2]
 ARIADNE = ROOT / "data" / "ariadne" / "test_lcs_rel"
@@ -41,14 +42,7 @@ def test_round_trip_csv_parquet_identical(tmp_path):
     obs = io.read(write_csv(tmp_path, good_rows()))
     truth = np.tile([0.0, 0.0, 0.6, 0.8, 0.01, 0.02, -0.03], (5, 1))
     obs = obs.with_columns(**{c: truth[:, i] for i, c in enumerate(TRUTH_COLUMNS)})
-    io.write(obs, tmp_path / "a.csv")
-    back = io.read(tmp_path / "a.csv")
-    io.write(back, tmp_path / "a.parquet")
-    again = io.read(tmp_path / "a.parquet")
-    pd.testing.assert_frame_equal(back.table, obs.table)
-    pd.testing.assert_frame_equal(again.table, obs.table)
-    assert again.meta == obs.meta
-    assert again.has_truth
+    assert assert_csv_parquet_round_trip(obs, tmp_path).has_truth
 
 
 def test_ariadne_damit_file():

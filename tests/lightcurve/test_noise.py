@@ -255,15 +255,14 @@ def test_conditions_files_and_overrides(tmp_path):
     assert conditions.site.seeing_fwhm_arcsec == 1.6 and conditions.site.altitude_m == 2400.0
     assert conditions.site.seeing_profile == "gaussian" and not conditions.sky.airmass_brightening
     assert conditions.telescope.aperture_m == 0.5  # the rest from the defaults
-    path.write_text("[detector]\nread_noise_e = -3\n")
-    with pytest.raises(ValueError, match=r"scope.toml: \[detector\] read_noise_e: must be >= 0"):
-        load_conditions(path)
-    path.write_text("[detector]\nread_noise = 3\n")
-    with pytest.raises(ValueError, match=r"did you mean 'read_noise_e'"):
-        load_conditions(path)
-    path.write_text("[site\n")
-    with pytest.raises(ValueError, match="invalid TOML"):
-        load_conditions(path)
+    for text, message in (
+        ("[detector]\nread_noise_e = -3\n", r"scope.toml: \[detector\] read_noise_e: must be >= 0"),
+        ("[detector]\nread_noise = 3\n", r"did you mean 'read_noise_e'"),
+        ("[site\n", "invalid TOML"),
+    ):
+        path.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            load_conditions(path)
     with pytest.raises(ValueError, match=r"--condition photometry.saturated: must be one of"):
         load_conditions(None, ["photometry.saturated=keep"])
     with pytest.raises(ValueError, match=r"must be a number"):

@@ -13,6 +13,7 @@ from lightcurve.observations import TRUTH_COLUMNS
 from lightcurve.render import Renderer
 from lightcurve.simulate import CCDNoise, GaussianNoise, simulate
 from shapes import get_library
+from tests.lightcurve._round_trip import assert_csv_parquet_round_trip
 
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")
 
@@ -93,13 +94,7 @@ def test_round_trip_of_simulated_file(tmp_path, geometry):
         noise=GaussianNoise(0.02),
         seed=1,
     )
-    io.write(sim, tmp_path / "sim.csv")
-    back = io.read(tmp_path / "sim.csv")
-    io.write(back, tmp_path / "sim.parquet")
-    again = io.read(tmp_path / "sim.parquet")
-    pd.testing.assert_frame_equal(back.table, sim.table)
-    pd.testing.assert_frame_equal(again.table, sim.table)
-    assert again.meta == sim.meta
+    again = assert_csv_parquet_round_trip(sim, tmp_path)
     assert all(c in again.table for c in TRUTH_COLUMNS)
 
 
