@@ -76,7 +76,6 @@ _SHADOW_ELEMENTS = 1 << 21
 # Rows × facets of one table shadow-factor block (512 KiB in float64): written by the table
 # lookup and read by the facet sums while it is still in the core's L2 cache.
 _TABLE_BLOCK_ELEMENTS = 1 << 16
-_SPARSE = True
 
 
 def flux_to_magnitude(flux: Any) -> Any:
@@ -397,43 +396,6 @@ class Renderer:
         slots.flags.writeable = False  # the table recognises it without hashing it
         return slots
 
-    @cached_property
-    def _shadow_correction(self) -> tuple:
-        """Arguments of :func:`lightcurve.kernels.shadow_correction.subtract_shadowed` that
-        describe the table and the facets (in the table's facet order)."""
-        from lightcurve.kernels import block_parameters, facet_table
-
-        table, compiled = self.compiled.visibility, self.compiled
-        entries = table.cell_entries()
-        facets = facet_table(compiled.normals, compiled.areas, compiled.tangents, self._numpy_dtype)
-        facets = np.ascontiguousarray(facets.T)
-        facet_block = np.empty(self.n_facets, np.int64)
-        kinds, parameters = [], []
-        for b, block in enumerate(self._blocks):
-            facet_block[self._order[block.start : block.stop]] = b
-            model = block.model
-            kind, row = block_parameters(model.name, model.params, model.anisotropic)
-            kinds.append(kind)
-            parameters.append(row)
-        return (
-            entries["rotation"],
-            table.resolution,
-            entries["flat_index"],
-            entries["cell_start"],
-            entries["cell_word_start"],
-            entries["entry_facet"],
-            entries["entry_word"],
-            entries["cell_words"],
-            entries["ones"],
-            entries["segment_start"],
-            entries["segment_weight"],
-            entries["normals"],
-            facets,
-            facet_block,
-            np.asarray(kinds, np.int64),
-            np.asarray(parameters, np.float64),
-        )
-
     def _evaluate_fused(self, q: Any, sun: Any, observer: Any) -> np.ndarray | torch.Tensor:
         """:meth:`flux` by the fused numba kernels (CPU, no gradient)."""
         as_numpy = not _is_tensor(q)
@@ -449,17 +411,6 @@ class Renderer:
         )
         if self.shadows == "none":
             sums = fused.sums(light, view)
-        elif self.shadows == "table" and _SPARSE:
-            from lightcurve.kernels.shadow_correction import subtract_shadowed
-            from lightcurve.kernels.threads import run_rows
-
-            sums = fused.sums(light, view)
-            arguments = self._shadow_correction
-
-            def correct(first: int, last: int) -> None:
-                subtract_shadowed(light, view, *arguments, sums, first, last)
-
-            run_rows(correct, len(light), self.n_facets)
         elif self.shadows == "table":  # cache-sized blocks: the factor stays in L2
             from lightcurve.kernels.threads import run_rows
 

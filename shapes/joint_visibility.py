@@ -45,11 +45,7 @@ __all__ = [
     "direction_fractions",
     "full_flags",
     "joint_rows",
-    "listed_fractions",
-    "listed_pairs",
-    "locate_rows",
     "pair_values",
-    "prefetch_entries",
     "segment_layout",
 ]
 
@@ -209,7 +205,17 @@ def joint_rows(
     while row ``r`` is computed, so that their cache misses overlap with work.
     """
     rows, columns = light.shape[0], out.shape[1]
-    where, geometry = locate_rows(light, view, rotation, n, flat_index, 0, rows)
+    where = np.empty((rows, 2), np.int64)  # cells of L and V
+    geometry = np.empty((rows, 12))  # L, V (grid frame), their corner weights
+    for r in range(rows):
+        lx, ly, lz = _rotate(light, r, rotation)
+        vx, vy, vz = _rotate(view, r, rotation)
+        cl, _, _, _, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
+        cv, _, _, _, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
+        where[r, 0], where[r, 1] = cl, cv
+        g = geometry[r]
+        g[0], g[1], g[2], g[3], g[4], g[5] = lx, ly, lz, vx, vy, vz
+        g[6], g[7], g[8], g[9], g[10], g[11] = wa0, wa1, wa2, wb0, wb1, wb2
     values = entry_value.reshape(-1)
     words = cell_words.reshape(-1)
     for r in range(min(rows, _AHEAD)):
@@ -269,140 +275,6 @@ def joint_rows(
             for j in range(columns):
                 if not _faces_both(normals, j, lx, ly, lz, vx, vy, vz):
                     out[r, j] = 0.0
-
-
-@njit(**_JIT)
-def locate_rows(light, view, rotation, n, flat_index, start, stop):
-    """Grid cells and corner weights of ``L`` and ``V`` for rows ``start:stop``.
-
-    Returns ``where`` (rows, 2) int64, the cells of ``L`` and ``V``, and ``geometry``
-    (rows, 12): ``L`` and ``V`` in the grid frame, then the corner weights of ``L``'s cell
-    and of ``V``'s (row ``i`` for input row ``start + i``).
-    """
-    where = np.empty((stop - start, 2), np.int64)
-    geometry = np.empty((stop - start, 12))
-    for i in range(stop - start):
-        lx, ly, lz = _rotate(light, start + i, rotation)
-        vx, vy, vz = _rotate(view, start + i, rotation)
-        cl, _, _, _, wa0, wa1, wa2 = _locate(lx, ly, lz, n, flat_index)
-        cv, _, _, _, wb0, wb1, wb2 = _locate(vx, vy, vz, n, flat_index)
-        where[i, 0], where[i, 1] = cl, cv
-        g = geometry[i]
-        g[0], g[1], g[2], g[3], g[4], g[5] = lx, ly, lz, vx, vy, vz
-        g[6], g[7], g[8], g[9], g[10], g[11] = wa0, wa1, wa2, wb0, wb1, wb2
-    return where, geometry
-
-
-@njit(**_JIT)
-def listed_pairs(
-    cells, g, cell_start, entry_facet, entry_word, normals, ones, row, stamp, slot, listed, words
-):
-    """The facets of one row that face both ``L`` and ``V`` and are listed in one of their
-    cells: the only facets whose joint fraction can be below 1.
-
-    Parameters
-    ----------
-    cells : (2,) int64
-        Cells of ``L`` and ``V`` (a row of :func:`locate_rows`' ``where``).
-    g : (12,) float64
-        ``L``, ``V`` (grid frame) and their corner weights (a row of ``geometry``).
-    cell_start, entry_facet, entry_word :
-        The per-cell entries in the table's facet order (as :func:`joint_rows`, with
-        ``entry_facet`` the facet).
-    normals : (3, K) float64
-        Facet normals in the grid frame.
-    ones : int
-        First of the all-ones rows of ``cell_words`` (as many as a facet has segments).
-    row : int
-        A number unique to this row among the calls sharing ``stamp``.
-    stamp, slot : (K,) int64
-        Work arrays, ``stamp`` initialised to -1 before the first call.
-    listed : (K + 1,) int64
-        Output: the listed facets in the first ``count`` entries (the last is scratch).
-    words : (K + 1, 2) int64
-        Output: per listed facet, the first row of its words in ``cell_words`` in ``L``'s
-        cell and in ``V``'s, or ``ones`` for a side whose cell does not list it.
-
-    Returns
-    -------
-    count : int
-        Number of listed facets.
-
-    Notes
-    -----
-    Written without data-dependent branches (a facet that does not face both directions is
-    written to the scratch entry), since whether an entry faces ``L`` and ``V`` changes
-    unpredictably from one entry to the next.
-    """
-    lx, ly, lz, vx, vy, vz = g[0], g[1], g[2], g[3], g[4], g[5]
-    scratch = len(listed) - 1
-    count = 0
-    for e in range(cell_start[cells[1]], cell_start[cells[1] + 1]):
-        k = np.int64(entry_facet[e])
-        nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
-        nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
-        facing = (nl > 0.0) & (nv > 0.0)
-        j = count if facing else scratch
-        listed[j] = k
-        words[j, 0] = ones
-        words[j, 1] = entry_word[e]
-        stamp[k] = row if facing else stamp[k]
-        slot[k] = j
-        count += np.int64(facing)
-    for e in range(cell_start[cells[0]], cell_start[cells[0] + 1]):
-        k = np.int64(entry_facet[e])
-        nl = normals[0, k] * lx + normals[1, k] * ly + normals[2, k] * lz
-        nv = normals[0, k] * vx + normals[1, k] * vy + normals[2, k] * vz
-        facing = (nl > 0.0) & (nv > 0.0)
-        both = stamp[k] == row
-        j = (slot[k] if both else count) if facing else scratch
-        listed[j] = k
-        words[j, 1] = words[j, 1] if both else ones
-        words[j, 0] = entry_word[e]
-        count += np.int64(facing & ~both)
-    return count
-
-
-@njit(**_JIT)
-def listed_fractions(count, listed, words, cell_words, segment_start, segment_weight, g, value):
-    """Joint fractions ``value[j]`` of the listed facets ``listed[:count]`` of a row
-    (:func:`listed_pairs`): ``Σ_s ω_s Σ_a Σ_b α_a β_b popcount(x_{a,s} & y_{b,s})``, a side
-    not listed by its cell read as all ones. Equal to :func:`joint_rows`' fractions up to
-    rounding (there the side of all ones is the blend ``Σ_a α_a f_a``)."""
-    wa0, wa1, wa2, wb0, wb1, wb2 = g[6], g[7], g[8], g[9], g[10], g[11]
-    for j in range(count):
-        k = listed[j]
-        s0 = segment_start[k]
-        first_l, first_v = words[j, 0], words[j, 1]
-        total = 0.0
-        for i in range(segment_start[k + 1] - s0):
-            p00, p01, p02, p10, p11, p12, p20, p21, p22 = _pairs(
-                cell_words[first_l + i, 0],
-                cell_words[first_l + i, 1],
-                cell_words[first_l + i, 2],
-                cell_words[first_v + i, 0],
-                cell_words[first_v + i, 1],
-                cell_words[first_v + i, 2],
-            )
-            total += segment_weight[s0 + i] * (
-                wa0 * (wb0 * p00 + wb1 * p01 + wb2 * p02)
-                + wa1 * (wb0 * p10 + wb1 * p11 + wb2 * p12)
-                + wa2 * (wb0 * p20 + wb1 * p21 + wb2 * p22)
-            )
-        value[j] = total
-
-
-@njit(**_JIT)
-def prefetch_entries(cells, cell_start, cell_word_start, entry_facet, entry_word, words):
-    """Prefetch the entries (facets, word offsets, bits) of the two cells ``cells``
-    (``words``: ``cell_words`` flattened)."""
-    for c in (cells[0], cells[1]):
-        for i in range(cell_start[c], cell_start[c + 1], 16):
-            _prefetch(entry_facet, i)
-        for i in range(cell_start[c], cell_start[c + 1], 8):
-            _prefetch(entry_word, i)
-        for i in range(3 * cell_word_start[c], 3 * cell_word_start[c + 1], 8):
-            _prefetch(words, i)
 
 
 @njit(**_JIT)

@@ -244,39 +244,6 @@ class VisibilityTable:
             self._frozen[id(order)] = (order, self._lookups[key])
         return self._lookups[key]
 
-    def cell_entries(self) -> dict[str, np.ndarray]:
-        """The per-cell entry lists in the table's own facet order, for kernels that look up
-        only the facets whose joint fraction can be below 1
-        (:func:`shapes.joint_visibility.partly_shadowed`), cached.
-
-        Returns
-        -------
-        dict
-            ``rotation`` (3, 3, grid frame → body frame), ``flat_index`` (the grid's node
-            lookup), ``cell_start`` (cells + 1), ``cell_word_start`` (cells + 1),
-            ``entry_facet`` (E, int32), ``entry_word`` (E, int64), ``cell_words``
-            (S_cells, 3, uint64), ``ones`` (its first all-ones row), ``segment_start``
-            (K + 1), ``segment_weight`` (S) and ``normals`` (3, K, grid frame); see
-            :meth:`_cells`.
-        """
-        if "entries" not in self._cache:
-            cells, seg = self._cells(), self._segments()
-            start = cells["cell_start"]
-            self._cache["entries"] = {
-                "rotation": np.ascontiguousarray(self.rotation),
-                "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
-                "cell_start": start,
-                "cell_word_start": np.append(cells["entry_word"], cells["ones"])[start],
-                "ones": cells["ones"],
-                "entry_facet": cells["entry_facet"],
-                "entry_word": cells["entry_word"],
-                "cell_words": cells["cell_words"],
-                "segment_start": seg["segment_start"],
-                "segment_weight": seg["segment_weight"],
-                "normals": np.ascontiguousarray(self.normals.T),
-            }
-        return self._cache["entries"]
-
     def _segments(self) -> dict[str, np.ndarray]:
         """The segments sorted by facet (``segment_start`` per facet), with their bit masks."""
         if "segments" not in self._cache:
@@ -297,9 +264,7 @@ class VisibilityTable:
 
         ``cell_start`` (cells + 1), ``entry_facet`` (E) in cell order; ``entry_word`` (E):
         first row of the entry's block of ``cell_words`` (S_cells, 3), one row per segment of
-        the facet (the segment's bits at each corner, masked to the segment); the rows from
-        ``ones`` on are all ones (as many as a facet has segments), the words of a side on
-        which a facet is fully visible. A lookup then
+        the facet (the segment's bits at each corner, masked to the segment). A lookup then
         reads two cells' entries, each a contiguous run, instead of six scattered rows.
         """
         if "cells" not in self._cache:
@@ -325,14 +290,11 @@ class VisibilityTable:
             segment = np.repeat(start[facet], count) + np.arange(count.sum()) - entry_word[row]
             nodes = corners[cell[row]]
             words = self.bits[nodes, seg["segment_word"][segment, None]]
-            words &= seg["segment_mask"][segment, None]
-            ones = np.full((max(1, int(np.diff(start).max(initial=0))), 3), ~np.uint64(0))
             self._cache["cells"] = {
                 "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
                 "entry_facet": facet.astype(np.int32),
                 "entry_word": entry_word.astype(np.int64),
-                "cell_words": np.ascontiguousarray(np.concatenate([words, ones])),
-                "ones": np.int64(len(words)),
+                "cell_words": np.ascontiguousarray(words & seg["segment_mask"][segment, None]),
             }
         return self._cache["cells"]
 
@@ -366,7 +328,7 @@ class VisibilityTable:
             "cell_start": np.searchsorted(entry_cell[source], np.arange(len(start))).astype(
                 np.int64
             ),
-            "cell_word_start": np.append(cells["entry_word"], cells["ones"])[start],
+            "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
             "entry_value": value,
             "entry_facet": entry_facet,
             "entry_word": entry_word,
