@@ -2,7 +2,8 @@
 reduction, table accuracy against ray casting, lookup throughput, and rendering speed with
 tables against rendering without shadows.
 
-Run ``python benchmarks/shapes.py [--quick] [--sections build,merge,accuracy,lookup,render]``;
+Run ``python benchmarks/shapes.py [--quick] [--sections build,merge,accuracy,lookup,render,
+breakdown]``;
 prints one JSON document with the machine and its load. ``--quick`` uses smaller grids and
 fewer directions (a smoke run); the default reproduces the figures of docs/shapes.md (about
 15 minutes on one core, most of it the 5120-facet table build). Seed 20261122 for every
@@ -17,6 +18,7 @@ import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 # This script is named like the package: put the repository, not its own folder, on the path.
@@ -301,13 +303,80 @@ def render_speed(epochs: int, repeats: int, exact_epochs: int) -> list[dict]:
 MODES = ("none", "table", "exact")
 
 
+def table_breakdown(epochs: int, repeats: int) -> list[dict]:
+    """Where the time of ``shadows="table"`` goes, per row (CPU time, one thread, float64,
+    best of ``repeats`` alternated rounds): the unshadowed facet sums (what ``"none"``
+    computes), the joint lookup that writes the dense (rows × facets) factor, and the facet
+    sums that multiply that factor in; with the share of rows whose pair of grid cells
+    (around ``L`` and around ``V``) an earlier row of the workload already visited."""
+    from lightcurve.kernels import set_num_threads
+    from lightcurve.render import AU_M
+
+    library = shapes.get_library(shapes.builtin_library_path())
+    rng = np.random.default_rng(SEED)
+    workloads = {
+        "random_attitudes": (
+            random_quaternion(epochs, rng),
+            np.tile([1.496e11, 0.0, 0.0], (epochs, 1)),
+            4e7 * _unit(rng.normal(size=(epochs, 3))),
+        ),
+        "light_curve": _light_curve(epochs),
+    }
+    threads_before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    set_num_threads(1)
+    clock = time.process_time
+    rows = []
+    for name in ("box_wing", "itokawa", "bennu"):
+        for material in MATERIALS:
+            renderer = Renderer(with_material(library.load(name), material), shadows="table")
+            renderer.flux(*(v[:10] for v in workloads["light_curve"]))  # load the kernels
+            fused, table, slots = (
+                renderer._fused_flux(),
+                renderer.compiled.visibility,
+                renderer._table_slots,
+            )
+            for workload, (q, sun, obs) in workloads.items():
+                light, view, _ = fused.geometry(q, sun, obs, AU_M)
+                factor = np.empty((epochs, fused.n_slots), fused.dtype)
+                parts = {
+                    "sums_unshadowed": partial(fused.sums, light, view),
+                    "joint_lookup": partial(
+                        table.joint, light, view, order=slots, facing=False, out=factor
+                    ),
+                    "sums_with_factor": partial(fused.sums, light, view, factor, per_slot=True),
+                    "table_flux": partial(renderer.flux, q, sun, obs),
+                }
+                per_row = dict.fromkeys(parts, np.inf)
+                for _ in range(repeats):
+                    for part, run in parts.items():
+                        per_row[part] = min(per_row[part], _per_row(run, epochs, clock))
+                cells = [table.grid.locate(v)[0] for v in (light, view)]
+                pairs = np.unique(np.column_stack([np.sort(c, axis=1) for c in cells]), axis=0)
+                rows.append(
+                    {
+                        "shape": name,
+                        "facets": len(renderer.compiled),
+                        "material": material,
+                        "workload": workload,
+                        "epochs": epochs,
+                        **{f"{part}_us_per_row": round(v, 3) for part, v in per_row.items()},
+                        "revisited_cell_pairs": round(1.0 - len(pairs) / epochs, 3),
+                    }
+                )
+                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    torch.set_num_threads(threads_before)
+    set_num_threads(None)
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small grids, few directions")
     parser.add_argument(
         "--sections",
-        default="build,merge,accuracy,lookup,render",
-        help="comma-separated subset of build, merge, accuracy, lookup, render",
+        default="build,merge,accuracy,lookup,render,breakdown",
+        help="comma-separated subset of build, merge, accuracy, lookup, render, breakdown",
     )
     args = parser.parse_args()
     sections = set(args.sections.split(","))
@@ -327,6 +396,10 @@ def main() -> None:
     if "render" in sections:
         result["render_speed"] = render_speed(
             1000 if args.quick else 10_000, 3 if args.quick else 7, 20 if args.quick else 200
+        )
+    if "breakdown" in sections:
+        result["table_breakdown"] = table_breakdown(
+            1000 if args.quick else 10_000, 3 if args.quick else 7
         )
     result["load_average"] = os.getloadavg()
     print(json.dumps(result, indent=2))
