@@ -19,6 +19,10 @@ Sun Microsystems 1993):
   ``x = k ln 2 + r`` (``ln 2`` in two parts), ``e^r`` by a polynomial (Cephes' degree 7 in
   float32; a degree-11 Chebyshev fit in float64). No division.
 
+One source serves both dtypes: the per-dtype algorithms (the polynomials and the ``log`` of
+``2^k (1 + f)``) and limits form a ``_Precision`` record, from which ``_functions`` compiles
+the six functions once per dtype; ``overload`` picks the set by the argument's type.
+
 Accuracy (measured against numpy in extended precision, ``tests/lightcurve/test_kernels.py``):
 at most 1.3 ulp in float32 and float64, subnormal inputs and results included. Domains:
 ``log``/``log2`` take finite ``x > 0``; ``exp``/``exp2`` return 0 below the subnormal range
