@@ -3,6 +3,7 @@ and the inversions of Ariadne (real) and Itokawa (synthetic) on reduced settings
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -37,7 +38,7 @@ from lightcurve.ephemeris import (
     itokawa_geometry,
     nightly_epochs,
 )
-from lightcurve.observations import Observations
+from lightcurve.observations import ObservationError, Observations
 from lightcurve.simulate import GaussianNoise
 from lightcurve.spin import SpinState, pole_distance, simulate_rotator
 from shapes import FacetModel, get_library, primitives
@@ -342,3 +343,21 @@ def test_settings_and_data_errors():
         period_scan(data, (6.0, -1.0))
     with pytest.raises(ValueError, match="at least two points"):
         Photometry.from_observations([_curves(ARIADNE, (0,), every=100)])
+
+
+def test_read_parses_damit_files_like_the_table_reader(tmp_path):
+    fields = [f.name for f in dataclasses.fields(Photometry)]
+    direct = Photometry.read([ARIADNE])
+    tabled = Photometry.from_observations([io.read(ARIADNE)])
+    for name in fields:
+        np.testing.assert_array_equal(getattr(direct, name), getattr(tabled, name), err_msg=name)
+    # A value the tables reject: read falls back to the table reader and its message.
+    lines = Path(ARIADNE).read_text(encoding="utf-8").splitlines()
+    values = lines[2].split()
+    lines[2] = " ".join([values[0], values[1], "0.0", "0.0", "1e-9", *values[5:]])
+    bad = tmp_path / "bad_lcs"
+    bad.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(ObservationError, match=r"row \d+, column 'sun_x': object->Sun range"):
+        Photometry.read([bad])
+    with pytest.raises(FileNotFoundError, match="no such observation file"):
+        Photometry.read([tmp_path / "missing"])
