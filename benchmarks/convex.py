@@ -79,7 +79,6 @@ import torch
 
 from benchmarks._machine import machine_info
 from filters.attitude import attitude_matrix
-from lightcurve import io
 from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
 from lightcurve.convex.minkowski import (
     close_gaussian_image,
@@ -383,9 +382,9 @@ def reference(
     command = [sys.executable, "-m", "lightcurve.cli", "convex", str(ARIADNE)]
     command += ["--pole", "220,0", "--period", "5.76198", "--out", str(out_dir)]
     library = (
-        "from lightcurve import io; from lightcurve.convex import Photometry, fit; "
+        "from lightcurve.convex import Photometry, fit; "
         "from lightcurve.spin import SpinState; "
-        f"d = Photometry.from_observations([io.read({str(ARIADNE)!r})]); "
+        f"d = Photometry.read([{str(ARIADNE)!r}]); "
         "fit(d, SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(d.mjd.min())))"
     )
     # Interleaved: each round runs every program once. CPU seconds (user + system) are
@@ -614,7 +613,7 @@ def main() -> None:
     import numba
 
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
-    data = Photometry.from_observations([io.read(ARIADNE)])
+    data = Photometry.read([ARIADNE])
     out: dict = {"machine": machine_info(), "load_average": os.getloadavg()}
     if "ariadne" in parts:
         out["ariadne_fit"], best = ariadne_fit(data, 100, 1e-7)

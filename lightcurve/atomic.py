@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "atomic_path",
+    "atomic_write_csv",
     "atomic_write_json",
     "atomic_write_table",
     "atomic_write_text",
@@ -73,3 +75,19 @@ def atomic_write_table(table: pd.DataFrame, target: str | os.PathLike[str]) -> N
             table.to_csv(tmp, index=False)
         else:
             raise ValueError(f"{target}: unknown table format {suffix!r} (use .csv or .parquet)")
+
+
+def atomic_write_csv(columns: Mapping[str, np.ndarray], target: str | os.PathLike[str]) -> None:
+    """Write equal-length columns atomically as CSV, without pandas.
+
+    The same text as ``pandas.DataFrame(columns).to_csv(target, index=False)``: a header row,
+    numbers in Python's shortest round-trip form, ``True``/``False``, NaN as an empty field.
+    """
+    values = [np.asarray(v).tolist() for v in columns.values()]
+    if len({len(v) for v in values}) > 1:
+        raise ValueError(f"{target}: columns of different lengths")
+    rows = (
+        ",".join("" if isinstance(v, float) and math.isnan(v) else str(v) for v in row)
+        for row in zip(*values, strict=True)
+    )
+    atomic_write_text(target, "".join(f"{line}\n" for line in [",".join(columns), *rows]))

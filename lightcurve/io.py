@@ -21,19 +21,22 @@ import json
 import os
 from collections.abc import Callable
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from lightcurve.atomic import atomic_path
-from lightcurve.observations import ObservationError, Observations, RowProblem, validate_table
+from lightcurve.damit import AU_KM, read_lightcurves
+from lightcurve.observation_rules import ObservationError, read_text
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from lightcurve.observations import Observations
 
 __all__ = ["AU_KM", "formats", "read", "read_damit", "write"]
 
-AU_KM = 149_597_870.7
 PARQUET_META_KEY = b"lightcurve.meta"
 
-Reader = Callable[..., Observations]
+Reader = Callable[..., "Observations"]
 _READERS: dict[str, Reader] = {}
 _SUFFIXES = {".csv": "csv", ".txt": None, ".parquet": "parquet", ".pq": "parquet"}
 
@@ -117,7 +120,9 @@ def read_csv(
     path: Path, require_magnitudes: bool = True, drop_bad_rows: bool = False
 ) -> Observations:
     """Read the project's CSV observation format (see :func:`read`)."""
-    text = _read_text(path)
+    import pandas as pd
+
+    text = read_text(path)
     lines = text.splitlines()
     meta, n_meta = _parse_header(lines, str(path))
     body = "\n".join(lines[n_meta:])
@@ -172,81 +177,21 @@ def read_damit(
     point gets ``mag_err`` (default 0.01 mag). Rows within each light curve are sorted by
     time (a few real light curves are not); this is recorded in ``meta['notes']``.
     """
-    if mag_err <= 0:
-        raise ValueError(f"mag_err must be > 0, got {mag_err}")
-    lines = _read_text(path).splitlines()
-    source = str(path)
+    import pandas as pd
 
-    def fields(index: int, count: int) -> list[str]:
-        if index >= len(lines):
-            raise ObservationError(f"file ends at line {len(lines)} (truncated?)", source)
-        parts = lines[index].split()
-        if len(parts) != count:
-            raise ObservationError(
-                f"line {index + 1}: expected {count} fields, found {len(parts)} (truncated?)",
-                source,
-            )
-        return parts
-
-    try:
-        n_curves = int(fields(0, 1)[0])
-    except ValueError:
-        raise ObservationError("line 1: expected the number of light curves", source) from None
-    rows, notes, cursor = [], [], 1
-    for curve in range(n_curves):
-        try:
-            n_points, flag = (int(v) for v in fields(cursor, 2))
-        except ValueError:
-            raise ObservationError(f"line {cursor + 1}: expected 'N flag'", source) from None
-        cursor += 1
-        block = []
-        for _ in range(n_points):
-            parts = fields(cursor, 8)
-            try:
-                block.append([float(v) for v in parts])
-            except ValueError:
-                raise ObservationError(f"line {cursor + 1}: non-numeric field", source) from None
-            cursor += 1
-        block = np.array(block).reshape(-1, 8)
-        if np.any(np.diff(block[:, 0]) < 0):
-            notes.append(f"light curve {curve} was not in time order; sorted")
-            block = block[np.argsort(block[:, 0], kind="stable")]
-        if np.any(np.diff(block[:, 0]) == 0):
-            notes.append(f"light curve {curve} has repeated epochs; all points kept")
-        rows.append(np.column_stack([block, np.full(len(block), curve), np.full(len(block), flag)]))
-    if any(line.strip() for line in lines[cursor:]):
-        raise ObservationError(f"unexpected content after line {cursor}", source)
-    data = np.concatenate(rows)
-    brightness = data[:, 1]
-    if np.any(brightness <= 0):
-        raise ObservationError(
-            "brightness must be positive",
-            source,
-            int(np.flatnonzero(brightness <= 0)[0]) + 1,
-            "brightness",
-        )
+    points = read_lightcurves(path, mag_err)
     table = pd.DataFrame(
         {
-            "mjd": data[:, 0] - 2400000.5,
-            "mag": -2.5 * np.log10(brightness),
+            "mjd": points.mjd,
+            "mag": points.magnitudes,
             "mag_err": mag_err,
-            **{c: data[:, 2 + i] * AU_KM for i, c in enumerate(("sun_x", "sun_y", "sun_z"))},
-            **{c: data[:, 5 + i] * AU_KM for i, c in enumerate(("obs_x", "obs_y", "obs_z"))},
-            "lightcurve_id": data[:, 8].astype(int),
-            "relative": data[:, 9] == 0,
+            **{c: points.sun_km[:, i] for i, c in enumerate(("sun_x", "sun_y", "sun_z"))},
+            **{c: points.observer_km[:, i] for i, c in enumerate(("obs_x", "obs_y", "obs_z"))},
+            "lightcurve_id": points.lightcurve_ids,
+            "relative": points.relative,
         }
     )
-    meta = {
-        "object": path.stem,
-        "frame": "ecliptic J2000",
-        "target": "asteroid",
-        "time": "JD, light-time corrected (DAMIT)",
-        "source_format": "damit",
-    }
-    if notes:
-        meta["notes"] = "; ".join(notes)
-    if any("repeated" in note for note in notes):
-        meta["duplicate_epochs"] = "allowed"
+    meta = points.meta
     return _finish(table, meta, path, require_magnitudes, drop_bad_rows, allow_duplicates=True)
 
 
@@ -278,13 +223,6 @@ def write(observations: Observations, path: str | os.PathLike[str]) -> None:
             pq.write_table(arrow.replace_schema_metadata(schema_meta), tmp)
         else:
             raise ValueError(f"{path}: cannot write format {path.suffix!r} (use .csv or .parquet)")
-
-
-def _read_text(path: Path) -> str:
-    try:
-        return path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ObservationError(f"not a UTF-8 text file ({exc.reason})", str(path)) from None
 
 
 def _parse_header(lines: list[str], source: str) -> tuple[dict[str, str], int]:
@@ -331,6 +269,8 @@ def _finish(
     drop_bad_rows: bool,
     allow_duplicates: bool = False,
 ) -> Observations:
+    from lightcurve.observations import Observations, RowProblem, validate_table
+
     problems: list[RowProblem] = []
     canonical = validate_table(
         table,

@@ -35,6 +35,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from lightcurve.observation_rules import (
+    OBJECT_RANGE_KM,
+    OBJECT_SPEED_KM_S,
+    OBSERVER_RANGE_KM,
+    SUN_RANGE_KM,
+    ObservationError,
+)
 from lightcurve.shadow_earth import SHADOW_STATES
 
 __all__ = [
@@ -96,43 +103,6 @@ KNOWN_COLUMNS = (
     *CONDITIONS_COLUMNS,
     *OBJECT_COLUMNS,
 )
-
-# Plausible ranges (km) used to catch vectors given in the wrong unit.
-SUN_RANGE_KM = (1e6, 1e11)
-OBSERVER_RANGE_KM = {"satellite": (100.0, 1e9), "asteroid": (1e3, 1e11)}
-# Geocentric distance (km) and speed (km/s) of an Earth-orbiting object: from below the
-# Earth's polar radius (6357 km) to well beyond the Moon; speeds below escape from LEO.
-OBJECT_RANGE_KM = (6300.0, 2e6)
-OBJECT_SPEED_KM_S = 20.0
-
-
-class ObservationError(ValueError):
-    """Bad observation input; the message names the file, the row and the column.
-
-    Attributes
-    ----------
-    source : str or None
-        File name.
-    row : int or None
-        Data row (1-based, first data row = 1).
-    column : str or None
-        Column name.
-    """
-
-    def __init__(
-        self,
-        message: str,
-        source: str | None = None,
-        row: int | None = None,
-        column: str | None = None,
-    ) -> None:
-        self.source, self.row, self.column = source, row, column
-        where = [str(source)] if source else []
-        if row is not None:
-            where.append(f"row {row}")
-        if column:
-            where.append(f"column '{column}'")
-        super().__init__(f"{', '.join(where)}: {message}" if where else message)
 
 
 @dataclass

@@ -130,10 +130,7 @@ def _settings(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    import pandas as pd
-
-    from lightcurve import io
-    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
+    from lightcurve.atomic import atomic_write_csv, atomic_write_json, json_ready
     from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
     from lightcurve.convex.scan import SCAN_SETTINGS, refine
     from lightcurve.spin import SpinState
@@ -143,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     if args.period is not None and not args.period > 0:
         raise ValueError(f"--period must be positive hours, got {args.period}")
     settings = _settings(args)
-    data = Photometry.from_observations([io.read(path) for path in args.files])
+    data = Photometry.read(args.files)
     epoch = float(data.mjd.min()) if args.epoch is None else args.epoch
     poles = (
         [tuple(math.radians(v) for v in args.pole)]
@@ -162,10 +159,8 @@ def run(args: argparse.Namespace) -> int:
             progress=show_progress(args),
         )
         solutions = refine(scan.local_minima(args.refine), data, settings)
-        atomic_write_table(
-            pd.DataFrame(
-                {"period_h": scan.periods_h, "chi2": scan.chi2, "rejected": scan.rejected}
-            ),
+        atomic_write_csv(
+            {"period_h": scan.periods_h, "chi2": scan.chi2, "rejected": scan.rejected},
             args.out / "scan.csv",
         )
     else:
@@ -174,17 +169,15 @@ def run(args: argparse.Namespace) -> int:
     solutions = _distinct(solutions)
     best = solutions[0]
     _write_shape(best, args)
-    atomic_write_table(
-        pd.DataFrame(
-            {
-                "mjd": data.mjd,
-                "lightcurve": data.curve,
-                "relative": data.relative[data.curve],
-                "observed": data.brightness,
-                "sigma": data.sigma,
-                "model": best.model,
-            }
-        ),
+    atomic_write_csv(
+        {
+            "mjd": data.mjd,
+            "lightcurve": data.curve,
+            "relative": data.relative[data.curve],
+            "observed": data.brightness,
+            "sigma": data.sigma,
+            "model": best.model,
+        },
         args.out / "fit.csv",
     )
     if args.plots:

@@ -11,12 +11,17 @@ errors propagate from ``mag_err``: ``σ_I = 0.4 ln 10 · σ_m · I``.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lightcurve.observations import Observations
+if TYPE_CHECKING:
+    from lightcurve.damit import DamitLightcurves
+    from lightcurve.observations import Observations
 
 __all__ = ["Photometry"]
 
@@ -113,7 +118,35 @@ class Photometry:
         return np.arccos(np.clip(np.sum(self.sun * self.earth, axis=1), -1.0, 1.0))
 
     @classmethod
-    def from_observations(cls, observations: Sequence[Observations]) -> Photometry:
+    def read(cls, paths: Sequence[str | os.PathLike[str]]) -> Photometry:
+        """Read observation files (any format of :func:`lightcurve.io.read`) into one data set.
+
+        DAMIT files are parsed straight into arrays (:mod:`lightcurve.damit`, no pandas) when
+        their values pass the checks of the observation tables; any other file, or one that
+        does not, goes through :func:`lightcurve.io.read`, which gives the same data or the
+        error naming the file, row and column.
+
+        Raises
+        ------
+        FileNotFoundError, ObservationError
+            As :func:`lightcurve.io.read`.
+        """
+        from lightcurve import io
+        from lightcurve.damit import read_lightcurves
+
+        tables: list[Observations | DamitLightcurves] = []
+        for path in map(Path, paths):
+            points = None
+            if path.is_file() and io.sniff_format(path) == "damit":
+                points = read_lightcurves(path)
+            clean = points is not None and points.passes_table_checks()
+            tables.append(points if clean else io.read(path))
+        return cls.from_observations(tables)
+
+    @classmethod
+    def from_observations(
+        cls, observations: Sequence[Observations | DamitLightcurves]
+    ) -> Photometry:
         """Combine observation tables (one or more files) into one data set.
 
         Each file's light curves (``lightcurve_id``; one curve when absent) keep their

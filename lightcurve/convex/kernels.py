@@ -68,6 +68,17 @@ def _turn(matrix, vector, cos, sin):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always", **_OPTIONS)
+def _body_directions(pole, sun, earth, scalars, b, j, t):  # pragma: no cover - compiled
+    """``cos φ``, ``sin φ`` and the body-frame Sun and Earth directions of problem b at
+    epoch j (time t), ``φ = φ0 + ω t``."""
+    phi = scalars[b, 0] + scalars[b, 1] * t
+    cos, sin = math.cos(phi), math.sin(phi)
+    lx, ly, lz = _turn(pole, sun[j], cos, sin)
+    vx, vy, vz = _turn(pole, earth[j], cos, sin)
+    return cos, sin, lx, ly, lz, vx, vy, vz
+
+
+@numba.njit(inline="always", **_OPTIONS)
 def _phase(alpha, a, d, k):  # pragma: no cover - compiled
     """``(f, e^{−α/d})`` with f clamped at 0."""
     decay = math.exp(-alpha / d)
@@ -104,10 +115,9 @@ def brightness(seconds, sun, earth, alpha, normals, areas, poles, scalars, out):
     for task in numba.prange(batch * epochs):
         b = task // epochs
         j = task - b * epochs
-        phi = scalars[b, 0] + scalars[b, 1] * seconds[j]
-        cos, sin = math.cos(phi), math.sin(phi)
-        lx, ly, lz = _turn(poles[b, 0], sun[j], cos, sin)
-        vx, vy, vz = _turn(poles[b, 0], earth[j], cos, sin)
+        _, _, lx, ly, lz, vx, vy, vz = _body_directions(
+            poles[b, 0], sun, earth, scalars, b, j, seconds[j]
+        )
         sx, sy, sz, ex, ey, ez = real(lx), real(ly), real(lz), real(vx), real(vy), real(vz)
         c = real(scalars[b, 5])
         total = zero
@@ -142,10 +152,9 @@ def brightness_and_jacobian(
         b = task // epochs
         j = task - b * epochs
         t = seconds[j]
-        phi = scalars[b, 0] + scalars[b, 1] * t
-        cos, sin = math.cos(phi), math.sin(phi)
-        lx, ly, lz = _turn(poles[b, 0], sun[j], cos, sin)
-        vx, vy, vz = _turn(poles[b, 0], earth[j], cos, sin)
+        cos, sin, lx, ly, lz, vx, vy, vz = _body_directions(
+            poles[b, 0], sun, earth, scalars, b, j, t
+        )
         sx, sy, sz, ex, ey, ez = real(lx), real(ly), real(lz), real(vx), real(vy), real(vz)
         c = real(scalars[b, 5])
         f, decay = _phase(alpha[j], scalars[b, 2], scalars[b, 3], scalars[b, 4])

@@ -286,51 +286,52 @@ def minkowski_polyhedron(
     h = np.ones(len(normals))
     value, p = evaluate(h)
     converged = False
-    for _ in range(max_iter):
-        # Planes cutting no facet of measurable area are moved in to touch the polytope
-        # (the same polytope, a lower Φ); their step below cuts a small facet off it.
-        inactive = p.facet_areas <= 1e-13 * p.facet_areas.sum()
-        h[inactive] = np.max(normals[inactive] @ p.vertices.T, axis=1)
-        vol = float(h @ p.facet_areas) / 3.0
-        value = float(areas @ h) - np.log(vol)
-        scaled = p.facet_areas / vol
-        gradient = areas - scaled
-        if np.max(np.abs(gradient)) <= tol:
-            converged = True
-            break
-        hessian = np.outer(scaled, scaled) - _hessian(normals, p) / vol
-        # Translations of the polytope (h → h + N t) are a null space of Φ: penalised.
-        held = normals * ~inactive[:, None]
-        hessian += np.mean(np.abs(np.diag(hessian))) * (held @ held.T)
-        rhs = -gradient
-        # A cut of depth ε at a vertex has an area of order ε²: aim at the target area.
-        hessian[inactive] = 0.0
-        hessian[:, inactive] = 0.0
-        hessian[inactive, inactive] = 1.0
-        rhs[inactive] = -0.5 * np.sqrt(vol * areas[inactive])
-        # One BLAS thread: a few hundred unknowns, and threads that spin on a busy machine.
-        with threadpool_limits(limits=1, user_api="blas"):
-            step = np.linalg.solve(hessian, rhs)
-        slope = float(gradient @ step)
-        if -slope <= 1e-30:  # Newton decrement at float64 round-off
-            converged = True
-            break
-        t = 1.0
-        while t > 1e-12:
-            trial, q = evaluate(h + t * step)
-            # Armijo's decrease, and no facet cut away: the area of a small facet is far
-            # from linear in h, so a full step would overshoot.
-            if trial <= value + 1e-4 * t * slope and not np.any(
-                ~inactive & (q.facet_areas <= 1e-13 * q.facet_areas.sum())
-            ):
+    # One BLAS thread: a few hundred unknowns, and threads that spin on a busy machine (set
+    # once: threadpoolctl looks the libraries up on every entry).
+    with threadpool_limits(limits=1, user_api="blas"):
+        for _ in range(max_iter):
+            # Planes cutting no facet of measurable area are moved in to touch the polytope
+            # (the same polytope, a lower Φ); their step below cuts a small facet off it.
+            inactive = p.facet_areas <= 1e-13 * p.facet_areas.sum()
+            h[inactive] = np.max(normals[inactive] @ p.vertices.T, axis=1)
+            vol = float(h @ p.facet_areas) / 3.0
+            value = float(areas @ h) - np.log(vol)
+            scaled = p.facet_areas / vol
+            gradient = areas - scaled
+            if np.max(np.abs(gradient)) <= tol:
+                converged = True
                 break
-            t *= 0.5
-        else:
-            break
-        # Re-centre (Φ is unchanged by translations): keep the origin well inside.
-        shift = q.vertices.mean(axis=0)
-        h = h + t * step - normals @ shift
-        p = q._replace(vertices=q.vertices - shift)
+            hessian = np.outer(scaled, scaled) - _hessian(normals, p) / vol
+            # Translations of the polytope (h → h + N t) are a null space of Φ: penalised.
+            held = normals * ~inactive[:, None]
+            hessian += np.mean(np.abs(np.diag(hessian))) * (held @ held.T)
+            rhs = -gradient
+            # A cut of depth ε at a vertex has an area of order ε²: aim at the target area.
+            hessian[inactive] = 0.0
+            hessian[:, inactive] = 0.0
+            hessian[inactive, inactive] = 1.0
+            rhs[inactive] = -0.5 * np.sqrt(vol * areas[inactive])
+            step = np.linalg.solve(hessian, rhs)
+            slope = float(gradient @ step)
+            if -slope <= 1e-30:  # Newton decrement at float64 round-off
+                converged = True
+                break
+            t = 1.0
+            while t > 1e-12:
+                trial, q = evaluate(h + t * step)
+                # Armijo's decrease, and no facet cut away: the area of a small facet is far
+                # from linear in h, so a full step would overshoot.
+                if trial <= value + 1e-4 * t * slope and not np.any(
+                    ~inactive & (q.facet_areas <= 1e-13 * q.facet_areas.sum())
+                ):
+                    break
+                t *= 0.5
+            else:
+                break
+            # Re-centre (Φ is unchanged by translations): keep the origin well inside.
+            shift = q.vertices.mean(axis=0)
+            h = h + t * step - normals @ shift
+            p = q._replace(vertices=q.vertices - shift)
     if not converged:
         raise RuntimeError(
             f"Minkowski reconstruction did not converge in {max_iter} Newton steps "

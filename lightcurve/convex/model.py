@@ -48,12 +48,9 @@ class ConvexModel:
 
     Parameters
     ----------
-    data : Photometry
-    sphere : GaussianSphere
-    epoch_mjd : float
-        Reference epoch t0 of the rotation angle.
-    convexity_weight : float
-        Weight ``w`` of the convexity regularisation (DAMIT's default 0.1).
+    data, sphere, epoch_mjd, convexity_weight
+        As :class:`lightcurve.convex.compiled.CompiledModel` (the convexity weight's
+        default is DAMIT's, 0.1).
     dtype : torch.dtype
         float64 (default) or float32 for the facet × epoch arrays; the rotation phase is
         always computed in float64.
@@ -233,22 +230,9 @@ class ConvexModel:
     def evaluate(
         self, params: torch.Tensor, jacobian: bool = True, lambert_free: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """Model brightness (comparable to ``data.brightness``) and its Jacobian.
-
-        Parameters
-        ----------
-        params : (B, P) float64 tensor
-            Parameter vectors (:class:`ParameterLayout`).
-        jacobian : bool
-            Also return ∂model/∂params.
-        lambert_free : bool
-            Compute the Lambert-weight column (otherwise it is zero).
-
-        Returns
-        -------
-        model : (B, N) tensor
-        jac : (B, N, P) tensor or None
-        """
+        """Model brightness and its Jacobian: as
+        :meth:`lightcurve.convex.compiled.CompiledModel.evaluate`, with (B, P) float64
+        tensors in and tensors out."""
         lay = self.layout
         k = lay.n_coefficients
         spin = params[:, lay.spin]

@@ -12,6 +12,7 @@ keeps every area positive.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -29,7 +30,11 @@ def real_harmonics(directions: np.ndarray, degree: int, order: int) -> np.ndarra
     """Real orthonormal spherical harmonics at unit directions.
 
     ``Y_l0``, ``√2 Re Y_lm`` and ``√2 Im Y_lm`` (m = 1 … min(l, order)), ordered by degree,
-    then order (cosine before sine).
+    then order (cosine before sine); ``Y_lm`` with the Condon–Shortley phase, as
+    :func:`scipy.special.sph_harm_y`. The normalised associated Legendre functions come from
+    the standard stable recurrences in degree (Holmes & Featherstone 2002, "A unified
+    approach to the Clenshaw summation and the recursive computation of very high degree and
+    order normalised associated Legendre functions", eqs. 11–13), so no scipy is loaded.
 
     Parameters
     ----------
@@ -43,19 +48,33 @@ def real_harmonics(directions: np.ndarray, degree: int, order: int) -> np.ndarra
     (F, K) numpy.ndarray
         ``K = harmonic_count(degree, order)``; column 0 is the constant ``1/√(4π)``.
     """
-    from scipy.special import sph_harm_y
-
     if not 0 <= order <= degree:
         raise ValueError(f"need 0 ≤ order ≤ degree, got degree {degree}, order {order}")
     d = np.asarray(directions, float)
-    theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+    cos_theta = np.clip(d[:, 2], -1.0, 1.0)
+    sin_theta = np.sqrt(1.0 - cos_theta**2)
     phi = np.arctan2(d[:, 1], d[:, 0])
+    # legendre[l][m]: √((2l+1)/4π (l−m)!/(l+m)!) P_l^m(cos θ), Condon–Shortley phase.
+    legendre = [[np.full_like(cos_theta, 1.0 / math.sqrt(4.0 * math.pi))]]
+    for l in range(1, degree + 1):
+        row = []
+        for m in range(min(l, order) + 1):
+            if m == l:
+                row.append(-math.sqrt((2 * l + 1) / (2 * l)) * sin_theta * legendre[l - 1][m - 1])
+                continue
+            a = math.sqrt((4 * l * l - 1) / (l * l - m * m))
+            value = a * cos_theta * legendre[l - 1][m]
+            if l - 2 >= m:
+                b = math.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
+                value = value - a * b * legendre[l - 2][m]
+            row.append(value)
+        legendre.append(row)
     columns = []
     for l in range(degree + 1):
-        columns.append(sph_harm_y(l, 0, theta, phi).real)
+        columns.append(legendre[l][0])
         for m in range(1, min(l, order) + 1):
-            y = sph_harm_y(l, m, theta, phi)
-            columns += [np.sqrt(2.0) * y.real, np.sqrt(2.0) * y.imag]
+            scaled = math.sqrt(2.0) * legendre[l][m]
+            columns += [scaled * np.cos(m * phi), scaled * np.sin(m * phi)]
     return np.stack(columns, axis=1)
 
 
@@ -82,30 +101,49 @@ class GaussianSphere:
             raise ValueError(f"need 0 ≤ order ≤ degree, got {self.degree}, {self.order}")
 
     @cached_property
-    def vertices(self) -> np.ndarray:
-        """(V, 3) unit vertices: poles plus rings of ``4 min(k, 2n − k)`` points."""
+    def _rings(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per ring k = 0 … 2n (the poles are rings of one point): vertex count, azimuth
+        offset (in steps of the ring) and index of the ring's first vertex."""
         n = self.nrows
-        points = [[0.0, 0.0, 1.0]]
-        for k in range(1, 2 * n):
-            count = 4 * min(k, 2 * n - k)
-            theta = k * np.pi / (2 * n)
-            phi = 2 * np.pi * (np.arange(count) + 0.5 * (k % 2)) / count
-            points += np.column_stack(
-                [
-                    np.sin(theta) * np.cos(phi),
-                    np.sin(theta) * np.sin(phi),
-                    np.full(count, np.cos(theta)),
-                ]
-            ).tolist()
-        points.append([0.0, 0.0, -1.0])
-        return np.array(points)
+        k = np.arange(2 * n + 1)
+        count = np.where((k == 0) | (k == 2 * n), 1, 4 * np.minimum(k, 2 * n - k))
+        return count, 0.5 * (k % 2), np.r_[0, np.cumsum(count)[:-1]]
+
+    @cached_property
+    def vertices(self) -> np.ndarray:
+        """(V, 3) unit vertices: poles plus rings of ``4 min(k, 2n − k)`` points, ring k at
+        polar angle ``kπ/(2n)`` and azimuths ``2π (j + (k mod 2)/2) / count``."""
+        count, offset, _ = self._rings
+        ring = np.repeat(np.arange(len(count)), count)
+        j = np.arange(len(ring)) - np.repeat(np.cumsum(count) - count, count)
+        theta = ring * np.pi / (2 * self.nrows)
+        phi = 2 * np.pi * (j + offset[ring]) / count[ring]
+        points = np.column_stack(
+            [np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]
+        )
+        points[0], points[-1] = [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]
+        return points
 
     @cached_property
     def _triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        from scipy.spatial import ConvexHull
-
-        hull = ConvexHull(self.vertices)
-        faces = hull.simplices.copy()
+        """The convex hull of the vertices in closed form: between two neighbouring rings,
+        each edge of one ring and the vertex of the other ring nearest to the edge's middle
+        azimuth (the first the edge's supporting plane meets when turned about the edge;
+        never a tie, as the half-step offsets of odd rings keep the rings' middle azimuths
+        apart). The same triangles as qhull's hull, checked in the tests."""
+        count, offset, first = self._rings
+        blocks = []
+        for r in range(len(count) - 1):
+            for a, b in ((r, r + 1), (r + 1, r)):
+                if count[a] == 1:  # a pole has no edge
+                    continue
+                i = np.arange(count[a])
+                middle = (i + offset[a] + 0.5) * count[b] / count[a] - offset[b]
+                apex = np.rint(middle).astype(np.int64) % count[b]
+                blocks.append(
+                    np.column_stack([first[a] + i, first[a] + (i + 1) % count[a], first[b] + apex])
+                )
+        faces = np.concatenate(blocks)
         tri = self.vertices[faces]
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         outward = np.sum(cross * tri.mean(axis=1), axis=1) > 0

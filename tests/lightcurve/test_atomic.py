@@ -1,9 +1,10 @@
 """Atomic writers leave either the old or the complete new file."""
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from lightcurve.atomic import atomic_path, atomic_write_json, atomic_write_table
+from lightcurve.atomic import atomic_path, atomic_write_csv, atomic_write_json, atomic_write_table
 
 
 def test_failed_write_keeps_old_content(tmp_path):
@@ -26,3 +27,15 @@ def test_table_formats(tmp_path):
         atomic_write_table(table, tmp_path / "t.xlsx")
     with pytest.raises(ValueError, match="not JSON compliant"):
         atomic_write_json(tmp_path / "bad.json", {"x": float("nan")})
+
+
+def test_csv_columns_written_as_pandas_writes_them(tmp_path):
+    rng = np.random.default_rng(5)
+    values = rng.normal(size=200) * 10.0 ** rng.integers(-30, 30, 200)
+    values[:3] = [np.nan, np.inf, -0.0]
+    columns = {"x": values, "n": np.arange(200), "flag": values > 0}
+    atomic_write_csv(columns, tmp_path / "ours.csv")
+    pd.DataFrame(columns).to_csv(tmp_path / "pandas.csv", index=False)
+    assert (tmp_path / "ours.csv").read_text() == (tmp_path / "pandas.csv").read_text()
+    with pytest.raises(ValueError, match="different lengths"):
+        atomic_write_csv({"x": values, "n": np.arange(3)}, tmp_path / "bad.csv")

@@ -3,6 +3,7 @@ and the inversions of Ariadne (real) and Itokawa (synthetic) on reduced settings
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,12 +33,13 @@ from lightcurve.convex.minkowski import (
 )
 from lightcurve.convex.model import ConvexModel
 from lightcurve.convex.scan import refine
+from lightcurve.convex.sphere import real_harmonics
 from lightcurve.ephemeris import (
     ITOKAWA_APPARITIONS,
     itokawa_geometry,
     nightly_epochs,
 )
-from lightcurve.observations import Observations
+from lightcurve.observations import ObservationError, Observations
 from lightcurve.simulate import GaussianNoise
 from lightcurve.spin import SpinState, pole_distance, simulate_rotator
 from shapes import FacetModel, get_library, primitives
@@ -342,3 +344,57 @@ def test_settings_and_data_errors():
         period_scan(data, (6.0, -1.0))
     with pytest.raises(ValueError, match="at least two points"):
         Photometry.from_observations([_curves(ARIADNE, (0,), every=100)])
+
+
+def test_read_parses_damit_files_like_the_table_reader(tmp_path):
+    fields = [f.name for f in dataclasses.fields(Photometry)]
+    direct = Photometry.read([ARIADNE])
+    tabled = Photometry.from_observations([io.read(ARIADNE)])
+    for name in fields:
+        np.testing.assert_array_equal(getattr(direct, name), getattr(tabled, name), err_msg=name)
+    # A value the tables reject: read falls back to the table reader and its message.
+    lines = Path(ARIADNE).read_text(encoding="utf-8").splitlines()
+    values = lines[2].split()
+    lines[2] = " ".join([values[0], values[1], "0.0", "0.0", "1e-9", *values[5:]])
+    bad = tmp_path / "bad_lcs"
+    bad.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(ObservationError, match=r"row \d+, column 'sun_x': object->Sun range"):
+        Photometry.read([bad])
+    with pytest.raises(FileNotFoundError, match="no such observation file"):
+        Photometry.read([tmp_path / "missing"])
+
+
+@pytest.mark.parametrize("nrows", [1, 2, 3, 8, 13])
+def test_closed_form_triangulation_is_the_convex_hull(nrows):
+    from scipy.spatial import ConvexHull
+
+    sphere = GaussianSphere(nrows, 1, 1)
+    hull = ConvexHull(sphere.vertices)
+    assert len(hull.vertices) == len(sphere.vertices)
+    assert {tuple(sorted(f)) for f in sphere.faces.tolist()} == {
+        tuple(sorted(f)) for f in hull.simplices.tolist()
+    }
+    # Counter-clockwise seen from outside: every normal points away from the centre.
+    centres = sphere.vertices[sphere.faces].mean(axis=1)
+    assert np.all(np.sum(sphere.normals * centres, axis=1) > 0)
+
+
+def test_real_harmonics_match_scipy():
+    from scipy.special import sph_harm_y
+
+    rng = np.random.default_rng(7)
+    directions = rng.normal(size=(300, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    directions[:2] = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]
+    theta = np.arccos(directions[:, 2])
+    phi = np.arctan2(directions[:, 1], directions[:, 0])
+    degree, order = 8, 5
+    expected = []
+    for l in range(degree + 1):
+        expected.append(sph_harm_y(l, 0, theta, phi).real)
+        for m in range(1, min(l, order) + 1):
+            y = sph_harm_y(l, m, theta, phi)
+            expected += [math.sqrt(2) * y.real, math.sqrt(2) * y.imag]
+    np.testing.assert_allclose(
+        real_harmonics(directions, degree, order), np.stack(expected, 1), rtol=0, atol=1e-13
+    )

@@ -71,3 +71,14 @@ def test_missing_constants_are_named():
         literal("lightcurve.render", "NOPE")
     with pytest.raises(LookupError, match="defines no class Nope"):
         dataclass_fields("lightcurve.noise", "Nope")
+
+
+def test_convex_fit_from_a_damit_file_loads_neither_pandas_nor_scipy_spatial():
+    code = (
+        "from lightcurve.convex import ConvexSettings, Photometry, fit\n"
+        "from lightcurve.spin import SpinState\n"
+        "d = Photometry.read(['data/ariadne/test_lcs_rel'])\n"
+        "s = ConvexSettings(nrows=2, degree=2, order=2, max_iter=1)\n"
+        "fit(d, SpinState.from_degrees(220.0, 0.0, 5.76198), s)"
+    )
+    assert _loaded(code) == {"numba"}
