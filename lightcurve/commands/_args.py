@@ -108,6 +108,11 @@ def add_scenario_arguments(
         parser.add_argument("--seed", type=int, default=seed, help=seed_help)
 
 
+def add_false_alarm_option(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--false-alarm``: the glint detector's false-alarm probability (default 1e-3)."""
+    parser.add_argument("--false-alarm", type=float, default=1e-3, help=help_text)
+
+
 def add_progress_option(parser: argparse.ArgumentParser, what: str) -> None:
     """``--progress/--no-progress``: a tqdm bar of ``what`` on stderr.
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcurve.commands._args import float_vector
+from lightcurve.commands._args import add_false_alarm_option, float_vector
 from lightcurve.commands._source import literal
 
 NAME = "glint"
@@ -59,12 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=3,
         help="degree of the local polynomial baseline (1: running straight line)",
     )
-    parser.add_argument(
-        "--false-alarm",
-        type=float,
-        default=1e-3,
-        help="probability of a detection in a glint-free light curve",
-    )
+    add_false_alarm_option(parser, "probability of a detection in a glint-free light curve")
     parser.add_argument(
         "--normal", action="store_true", help="estimate one panel's normal from the glints"
     )

@@ -18,7 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcurve.commands._args import add_progress_option, float_vector, progress_bar
+from lightcurve.commands._args import (
+    add_false_alarm_option,
+    add_progress_option,
+    float_vector,
+    progress_bar,
+)
 
 NAME = "period"
 HELP = "rotation period: Fourier periodogram with aliases, sidereal correction"
@@ -54,12 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="cross-check with the glint-to-glint period (tumbling satellites)",
     )
-    parser.add_argument(
-        "--false-alarm",
-        type=float,
-        default=1e-3,
-        help="glint false-alarm probability for --glints",
-    )
+    add_false_alarm_option(parser, "glint false-alarm probability for --glints")
     add_progress_option(parser, "the period scan")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 

@@ -85,3 +85,18 @@ def test_cli_reports_the_library_check_in_one_line_before_reading_inputs(
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], lines
     assert not out.exists()
+
+
+def test_request_check_has_the_inversion_defaults():
+    """``validate_request`` checks what ``invert`` will run: every parameter they share has the
+    same default in both (a changed default in one would check a different request)."""
+    import inspect
+
+    from lightcurve.inversion import invert
+
+    run = inspect.signature(invert).parameters
+    check = inspect.signature(validate_request).parameters
+    shared = (set(run) & set(check)) - {"options", "option_overrides", "method"}
+    assert {"attitude_sigma_deg", "omega_sigma", "omega_max", "particles", "q0"} <= shared
+    for name in shared:
+        assert check[name].default == run[name].default, name
