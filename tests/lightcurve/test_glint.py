@@ -94,7 +94,7 @@ def test_false_alarm_rate_is_calibrated():
     """200 seeded glint-free curves (trend + Gaussian noise): the fraction with a detection
     matches the stated false-alarm probability (binomial 99.9 % bounds)."""
     rng = np.random.default_rng(11)
-    base = _noise_curve(rng)
+    base = _noise_curve(rng, n=400)
     trend = 11 + 0.4 * np.sin(base.times / 2500)
     runs, level = 200, 0.05
     hits = 0
