@@ -17,11 +17,13 @@ exceeds the detector's threshold for FA: one baseline serves every level), with 
 Clopper–Pearson upper bound, for the local-cubic baseline (the default), and in the same
 run for the local quadratic and the running straight line (``degree`` 2 and 1).
 
-With ``--flat`` the same nights carry a constant magnitude plus the noise (pure noise: the
-detector's threshold is calibrated for exactly this case, so the measured rates check it).
+With ``--flat`` the same nights are also run with a constant magnitude plus the same noise
+(pure noise: the detector's threshold is calibrated for exactly this case, so the measured
+rates check it; the detector is scale-free there, so only the first noise level is run).
+Several ``--noise-mag`` values run the same nights and the same unit noise at each level.
 
     python -m benchmarks.glint_false_alarm [--curves 200] [--seed 0] [--flat]
-        [--noise-mag 0.02] [--cadence 60] [--baseline all|local_cubic|...]
+        [--noise-mag 0.02 [0.01 ...]] [--cadence 60] [--baseline all|local_cubic|...]
 """
 
 from __future__ import annotations
@@ -71,16 +73,14 @@ def _night(rng: np.random.Generator, cadence: float) -> Observations | None:
         return None
 
 
-def glint_free_curve(
-    rng: np.random.Generator,
-    flat: bool = False,
-    noise_mag: float = NOISE_MAG,
-    cadence: float = CADENCE_S,
-) -> tuple[Observations, float]:
-    """One accepted glint-free curve (noisy) and the span of its noiseless magnitudes.
+def glint_free_night(
+    rng: np.random.Generator, cadence: float = CADENCE_S
+) -> tuple[Observations, np.ndarray, float]:
+    """One accepted glint-free night: noiseless curve, unit Gaussian noise, span (mag).
 
-    ``flat``: the accepted night's sampling with a constant magnitude (span 0) instead.
-    Nights with fewer than 200 minutes of sampling are drawn again.
+    The noisy curve at noise level σ is ``magnitudes + σ · noise``; the flat curve is the
+    noiseless mean plus the same noise. Nights with fewer than 200 minutes of sampling are
+    drawn again.
     """
     for _ in range(MAX_NIGHTS):
         geometry = _night(rng, cadence)
@@ -100,12 +100,19 @@ def glint_free_curve(
             span = float(np.ptp(mag))
             if not 0.3 <= span <= 4.0:
                 continue
-            if flat:
-                mag, span = np.full(len(mag), float(np.mean(mag))), 0.0
-            noisy = mag + rng.normal(0.0, noise_mag, len(mag))
-            table = geometry.table.assign(mag=noisy, mag_err=noise_mag)
-            return Observations(table, geometry.meta), span
+            noise = rng.standard_normal(len(mag))
+            table = geometry.table.assign(mag=mag, mag_err=1.0)
+            return Observations(table, geometry.meta), noise, span
     raise RuntimeError(f"no night of {MAX_NIGHTS} drawn gave an acceptable glint-free curve")
+
+
+def noisy_curve(night: Observations, noise: np.ndarray, noise_mag: float, flat: bool):
+    """The night's curve (``flat``: its mean magnitude) plus ``noise_mag · noise``."""
+    mag = night.magnitudes
+    if flat:
+        mag = np.full(len(mag), float(np.mean(mag)))
+    table = night.table.assign(mag=mag + noise_mag * noise, mag_err=noise_mag)
+    return Observations(table, night.meta)
 
 
 def upper_bound(hits: int, n: int, confidence: float = 0.95) -> float:
@@ -118,7 +125,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--curves", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--flat", action="store_true", help="constant magnitude plus noise (pure noise)"
+        "--flat",
+        action="store_true",
+        help="also the same nights made flat (constant magnitude plus the same noise)",
     )
     parser.add_argument(
         "--baseline",
@@ -126,37 +135,69 @@ def main(argv: list[str] | None = None) -> None:
         default="all",
         help="baselines to run (default: all three)",
     )
-    parser.add_argument("--noise-mag", type=float, default=NOISE_MAG, help="Gaussian σ (mag)")
+    parser.add_argument(
+        "--noise-mag",
+        type=float,
+        nargs="+",
+        default=[NOISE_MAG],
+        help="Gaussian σ (mag); several values run the same nights and unit noise at each",
+    )
     parser.add_argument("--cadence", type=float, default=CADENCE_S, help="sampling interval (s)")
     args = parser.parse_args(argv)
     baselines = {name: d for name, d in BASELINES.items() if args.baseline in ("all", name)}
     reference = DEFAULT_BASELINE if DEFAULT_BASELINE in baselines else args.baseline
+    # Pure noise is scale-free: the flat curves are run at the first noise level only.
+    cases = [("curved", sigma) for sigma in args.noise_mag]
+    cases += [("flat", args.noise_mag[0])] if args.flat else []
     rng = np.random.default_rng(args.seed)
-    hits = {name: dict.fromkeys(LEVELS, 0) for name in baselines}
+    hits = {case: {name: dict.fromkeys(LEVELS, 0) for name in baselines} for case in cases}
     spans, points = [], []
-    seconds = dict.fromkeys(baselines, 0.0)
-    seconds_curves = 0.0
+    cpu = dict.fromkeys(baselines, 0.0)
+    cpu_nights = 0.0
     for _ in range(args.curves):
-        start = time.perf_counter()
-        curve, span = glint_free_curve(rng, args.flat, args.noise_mag, args.cadence)
-        seconds_curves += time.perf_counter() - start
+        start = time.process_time()
+        night, noise, span = glint_free_night(rng, args.cadence)
+        cpu_nights += time.process_time() - start
         spans.append(span)
-        points.append(len(curve.times))
-        for name, degree in baselines.items():
-            start = time.perf_counter()
-            detection = detect_glints(curve, false_alarm=LEVELS[-1], degree=degree)
-            seconds[name] += time.perf_counter() - start
-            peak = float(np.max(detection.excess_sigma))
-            for level in LEVELS:
-                threshold = detection_threshold(level, len(curve.times), dof=detection.dof)
-                hits[name][level] += peak > threshold
+        points.append(len(night.times))
+        for case in cases:
+            curve = noisy_curve(night, noise, case[1], flat=case[0] == "flat")
+            for name, degree in baselines.items():
+                start = time.process_time()
+                detection = detect_glints(curve, false_alarm=LEVELS[-1], degree=degree)
+                cpu[name] += time.process_time() - start
+                peak = float(np.max(detection.excess_sigma))
+                for level in LEVELS:
+                    threshold = detection_threshold(level, len(curve.times), dof=detection.dof)
+                    hits[case][name][level] += peak > threshold
     n = args.curves
+    runs = [
+        {
+            "curve_kind": kind,
+            "noise_mag": sigma,
+            "levels": [
+                {
+                    "false_alarm": level,
+                    "allowed_curves": level * n,
+                    **{
+                        name: {
+                            "curves": hits[kind, sigma][name][level],
+                            "rate": hits[kind, sigma][name][level] / n,
+                            "rate_upper_95": upper_bound(hits[kind, sigma][name][level], n),
+                        }
+                        for name in baselines
+                    },
+                    "holds": hits[kind, sigma][reference][level] <= level * n,
+                }
+                for level in LEVELS
+            ],
+        }
+        for kind, sigma in cases
+    ]
     result = {
         "benchmark": "glint_false_alarm",
         "seed": args.seed,
-        "curve_kind": "flat" if args.flat else "curved",
         "curves": n,
-        "noise_mag": args.noise_mag,
         "cadence_s": args.cadence,
         "points_per_curve": {"min": int(np.min(points)), "median": float(np.median(points))},
         "curve_span_mag": {
@@ -166,25 +207,10 @@ def main(argv: list[str] | None = None) -> None:
         },
         "default_baseline": DEFAULT_BASELINE,
         "holds_refers_to": reference,
-        "levels": [
-            {
-                "false_alarm": level,
-                "allowed_curves": level * n,
-                **{
-                    name: {
-                        "curves": hits[name][level],
-                        "rate": hits[name][level] / n,
-                        "rate_upper_95": upper_bound(hits[name][level], n),
-                    }
-                    for name in baselines
-                },
-                "holds": hits[reference][level] <= level * n,
-            }
-            for level in LEVELS
-        ],
-        "seconds_per_curve": {
-            "geometry": seconds_curves / n,
-            **{name: seconds[name] / n for name in baselines},
+        "runs": runs,
+        "cpu_seconds_per_curve": {
+            "night": cpu_nights / n,
+            **{name: cpu[name] / (n * len(cases)) for name in baselines},
         },
         "machine": machine_info(),
     }

@@ -35,6 +35,42 @@ WIDTH_S = 120.0
 FALSE_ALARM = 1e-3
 
 
+def fixed_geometry_curve(
+    times_s: np.ndarray, mag: np.ndarray, mag_err: float, source: str
+) -> Observations:
+    """A light curve with constant Sun and observer vectors (km), starting at MJD 61000.
+
+    The glint detector reads only the magnitudes and their errors; the geometry columns are
+    there to make the table a valid observation file (also used by
+    ``tests/lightcurve/test_glint.py``).
+
+    Parameters
+    ----------
+    times_s : (n,) array_like
+        Epochs (s after the first).
+    mag : (n,) array_like
+        Magnitudes.
+    mag_err : float
+        1σ error of every magnitude (mag).
+    source : str
+        Name of the table in messages.
+    """
+    table = pd.DataFrame(
+        {
+            "mjd": 61000.0 + np.asarray(times_s, dtype=float) / 86400.0,
+            "mag": mag,
+            "mag_err": mag_err,
+            "sun_x": 1.5e8,
+            "sun_y": 0.0,
+            "sun_z": 0.0,
+            "obs_x": 0.0,
+            "obs_y": 3.6e4,
+            "obs_z": 0.0,
+        }
+    )
+    return Observations(validate_table(table, source), {})
+
+
 def flash_curve(rng: np.random.Generator, amplitude: float) -> tuple[Observations, float]:
     """One noisy curve with a flash of peak ``amplitude`` (mag) and the flash's epoch (s)."""
     t = np.arange(POINTS) * CADENCE_S
@@ -44,20 +80,7 @@ def flash_curve(rng: np.random.Generator, amplitude: float) -> tuple[Observation
         - amplitude * np.exp(-0.5 * ((t - epoch) / WIDTH_S) ** 2)
         + rng.normal(0.0, NOISE_MAG, POINTS)
     )
-    table = pd.DataFrame(
-        {
-            "mjd": 61000.0 + t / 86400.0,
-            "mag": mag,
-            "mag_err": NOISE_MAG,
-            "sun_x": 1.5e8,
-            "sun_y": 0.0,
-            "sun_z": 0.0,
-            "obs_x": 0.0,
-            "obs_y": 3.6e4,
-            "obs_z": 0.0,
-        }
-    )
-    return Observations(validate_table(table, "injected flash"), {}), epoch
+    return fixed_geometry_curve(t, mag, NOISE_MAG, "injected flash"), epoch
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -23,6 +23,21 @@ points of pure Gaussian noise shows any such point with probability at most
 ``false_alarm``: the Student-t quantile at ``false_alarm/N`` (Bonferroni) with the degrees of
 freedom of the MAD (:func:`detection_threshold`). Consecutive candidates form one glint,
 whose epoch comes from a Gaussian fit to the flash profile (with its 1σ error).
+
+Bias check. ``v_i`` is the variance of a residual, not its bias: where a curve bends faster
+than the local polynomial follows (the first or last hour of a night fading towards a
+panel's terminator), the baseline lies above the magnitudes by a smooth bias that is fixed
+in magnitude, so the lower the noise, the more of it shows as false brightenings; once it
+passes the clipping level those points leave the fit, the straight-line fallback beside them
+bends even less, and the clipped stretch grows into a false glint of tens of σ. The leading
+bias term of a local polynomial of degree p is that of the degree ``p + 1`` and ``p + 2``
+terms of the curve (Fan & Gijbels 1996, ch. 3); a local polynomial of degree ``p + 2`` over
+the same window and weights has no bias of that order. Every residual is therefore measured
+against both fits, each in units of its own ``σ e_i √v_i``, and a point's brightening (used
+for clipping and detection) is the smaller of the two: it exceeds ``z`` with at most the
+probability that the nearly unbiased higher-degree residual does, so the false-alarm bound
+holds where the baseline is biased, and it can only be lower where neither is. A flash,
+narrower than the window, stands out of both fits.
 """
 
 from __future__ import annotations
@@ -54,6 +69,7 @@ __all__ = [
 SECONDS_PER_DAY = 86400.0
 MAD_EFFICIENCY = 0.37  # asymptotic efficiency of the MAD for Gaussian noise
 CLIP_SIGMA = 3.0  # brightenings above this many σ leave the baseline's fit
+BIAS_CHECK_DEGREES = 2  # the bias check fits a polynomial this much higher in degree
 
 
 @dataclass
@@ -135,6 +151,7 @@ class _Fit:
     variance: np.ndarray
     scale: float
     dof: float
+    excess: np.ndarray
 
 
 def detect_glints(
@@ -143,6 +160,7 @@ def detect_glints(
     false_alarm: float = 1e-3,
     max_flash_s: float | None = None,
     degree: int = 3,
+    bias_check: bool = True,
 ) -> GlintDetection:
     """Find specular flashes above a smooth, curved baseline.
 
@@ -162,6 +180,10 @@ def detect_glints(
     degree : int
         Degree of the local polynomial (0 to 3; 3 and 2 follow the bend of a fading curve,
         3 without extra bias at the ends of a light curve; 1 is the running straight line).
+    bias_check : bool
+        Measure every brightening also against a local polynomial two degrees higher and
+        keep the smaller of the two (module docstring, "Bias check"); ``False`` tests against
+        the degree-``degree`` baseline alone (the detector before the check).
 
     Returns
     -------
@@ -190,11 +212,10 @@ def detect_glints(
     if np.any(~(errors > 0)):
         row = int(np.flatnonzero(~(errors > 0))[0])
         raise ValueError(f"mag_err must be positive (row {row}: {errors[row]})")
-    fit = _baseline(times, mag, errors, ids, window=window, degree=degree)
-    noise = fit.scale * errors * np.sqrt(fit.variance)
+    fit = _baseline(times, mag, errors, ids, window=window, degree=degree, bias_check=bias_check)
     residual = fit.baseline - mag  # > 0: brighter than the baseline
     z = detection_threshold(false_alarm, len(mag), dof=fit.dof)
-    excess_sigma = residual / noise
+    excess_sigma = fit.excess
     candidate = excess_sigma > z
     glints = []
     sun, observer = observations.sun_vectors, observations.observer_vectors
@@ -258,6 +279,7 @@ def _baseline(
     *,
     window: float,
     degree: int,
+    bias_check: bool = True,
     iterations: int = 4,
 ) -> _Fit:
     """Local polynomial (LOESS) baseline with brightenings above 3σ clipped.
@@ -285,29 +307,40 @@ def _baseline(
         of ``mag_err``; ``dof``: degrees of freedom of ``scale``, ``0.37 δ₁`` with
         ``δ₁ = Σ_kept v_i`` the residual degrees of freedom of the kept points (Cleveland &
         Devlin 1988, "Locally weighted regression: an approach to regression analysis by
-        local fitting", JASA 83, 596).
+        local fitting", JASA 83, 596); ``excess`` (N,): each point's brightening in units of
+        ``scale · e_i √v_i``, the smaller of those above the degree-``degree`` baseline and
+        (with ``bias_check``) above the degree ``degree + 2`` one, each with its own ``v_i``.
+        Points whose ``excess`` passes ``CLIP_SIGMA`` leave both fits in the next pass.
     """
-    baseline = np.empty_like(mag)
-    variance = np.empty_like(mag)
+    degrees = (degree, degree + BIAS_CHECK_DEGREES) if bias_check else (degree,)
+    baseline = np.empty((len(degrees), len(mag)))
+    variance = np.empty((len(degrees), len(mag)))
     keep = np.ones(len(mag), dtype=bool)
     scale, dof = 1.0, MAD_EFFICIENCY * len(mag)
     segments = [np.flatnonzero(ids == label) for label in np.unique(ids)]
     for iteration in range(iterations):
         for rows in segments:
-            baseline[rows], variance[rows] = _local_fit(
-                times[rows], mag[rows], errors[rows], keep[rows], window=window, degree=degree
-            )
-        standard = (baseline - mag) / (errors * np.sqrt(variance))
-        inliers = standard[keep]
+            for k, fit_degree in enumerate(degrees):
+                baseline[k, rows], variance[k, rows] = _local_fit(
+                    times[rows],
+                    mag[rows],
+                    errors[rows],
+                    keep[rows],
+                    window=window,
+                    degree=fit_degree,
+                )
+        standards = (baseline - mag) / (errors * np.sqrt(variance))
+        standard = np.min(standards, axis=0)
+        inliers = standards[0, keep]
         spread = float(np.median(np.abs(inliers - np.median(inliers))))
         # The first pass keeps every point; later ones keep a sample cut above at the
         # clipping level (in units of the previous scale).
         scale = spread / _clipped_mad(CLIP_SIGMA if iteration else math.inf)
         if not scale > 0:
             scale = 1.0
-        dof = MAD_EFFICIENCY * float(np.sum(variance[keep]))
+        dof = MAD_EFFICIENCY * float(np.sum(variance[0, keep]))
         keep = ~_widen(standard > CLIP_SIGMA * scale)
-    return _Fit(baseline, variance, scale, dof)
+    return _Fit(baseline[0], variance[0], scale, dof, standard / scale)
 
 
 @functools.lru_cache(maxsize=8)
