@@ -230,7 +230,14 @@ def global_search(
     -------
     SearchResult
         Distinct candidates of all rounds, best first.
+
+    Raises
+    ------
+    ValueError
+        ``rate_scales`` empty or a scale outside ``(0, 1]``.
     """
+    if not (rate_scales and all(0.0 < s <= 1.0 for s in rate_scales)):
+        raise ValueError(f"rate_scales must be in (0, 1], got {tuple(rate_scales)!r}")
     rng = np.random.default_rng(seed)
     schedule = _Schedule(
         n_candidates=n_candidates,

@@ -305,6 +305,8 @@ def test_a_rate_scale_searches_a_smaller_ball_on_longer_windows():
     assert result.screened == 128
     # Both scales end on the same window, so their χ² compare.
     assert problem.times[result.epochs[-1]] == 118.0
+    with pytest.raises(ValueError, match="rate_scales must be in"):
+        global_search(problem, rate_scales=(1.0, 1.5))
 
 
 def test_the_quarter_rate_scale_finds_a_slow_rotator():
