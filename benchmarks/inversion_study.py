@@ -358,6 +358,7 @@ def pf_study(
     def one(i: int, rng: np.random.Generator) -> dict[str, Any]:
         truth = draw_truth(scenario, rng)
         observations = simulate_run(scenario, shape, truth, rng)
+        start = time.process_time()
         result = invert(
             observations,
             {shape_name: shape},
@@ -368,6 +369,7 @@ def pf_study(
             **options,
         )
         record = final_errors(result, observations, group)
+        record["inversion_cpu_s"] = time.process_time() - start
         final = observations.truth[-1, :4]
         mode_errors = [
             math.degrees(float(group.attitude_error(np.asarray(m["quaternion"]), final)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -41,6 +41,7 @@ class _Schedule:
 
     n_candidates: int
     omega_max: float
+    rate_ball: float
     n_shapes: int
     prior: Prior | None
     screen_duration: float
@@ -66,6 +67,25 @@ class _Schedule:
             angle=self.distinct_angle,
             rate=self.distinct_rate,
             groups=self.groups,
+        )
+
+    def at_rate_scale(self, scale: float) -> _Schedule:
+        """This schedule for rates up to ``scale · omega_max`` (``0 < scale ≤ 1``): the
+        uniform candidates' rate ball shrinks by ``scale`` and the screening and refinement
+        windows stretch by ``1/scale`` (the longest stays the last), so that each window
+        spans the same rotation as at the full scale. The measurements per window, the
+        rate prior of the fits and the last window are unchanged: the χ² of every scale's
+        candidates on the last window compare."""
+        if scale == 1.0:
+            return self
+        longest = self.windows[-1]
+        stages = [i for i, w in enumerate(self.windows[:-1]) if w / scale < longest]
+        return replace(
+            self,
+            rate_ball=scale * self.omega_max,
+            screen_duration=min(self.screen_duration / scale, longest),
+            windows=(*(self.windows[i] / scale for i in stages), longest),
+            keep=(*(self.keep[i] for i in stages), self.keep[-1]),
         )
 
 
@@ -107,6 +127,7 @@ def global_search(
     tolerance: float = 0.0,
     twins: Twins | None = None,
     rounds: int = 1,
+    rate_scales: Sequence[float] = (1.0,),
     good_fit: float = 2.0,
     min_improvement: float = 0.0,
     per_shape: bool = False,
@@ -164,6 +185,19 @@ def global_search(
     rounds : int
         Further rounds with fresh candidates are run, up to this many in total, while the
         best fit is poor: ``χ²/E > good_fit`` on the final window of ``E`` measurements.
+    rate_scales : sequence of float
+        Every round searches each of these scales ``s`` (``0 < s ≤ 1``) of the rate ball
+        in turn: candidates with rates up to ``s · omega_max``, screened and refined on
+        windows stretched by ``1/s`` (up to the last window; see
+        :meth:`_Schedule.at_rate_scale`). What a window tells about the state grows with
+        the rotation it spans: over a 30 s screening window a rotator at a sixth of
+        ``omega_max`` turns 24° and many states far from it fit as well as its own. On a
+        20-min Itokawa light curve at 0.80°/s (``omega_max`` 5°/s, 0.05 mag noise) the
+        states refined from the full ball fitted every window up to 342 s as well as the
+        truth's own fit, none within 15° of the truth, and the search ended 155° off
+        (χ² 351 against the truth's 327 on 300 measurements); the scale 0.25 (windows from
+        120 s) found the truth's optimum, 0.6° off. The default searches the full ball
+        only.
     good_fit : float
         ``χ²`` per measurement (measurement errors included, prior rows not counted) below
         which the search stops.
@@ -196,11 +230,19 @@ def global_search(
     -------
     SearchResult
         Distinct candidates of all rounds, best first.
+
+    Raises
+    ------
+    ValueError
+        ``rate_scales`` empty or a scale outside ``(0, 1]``.
     """
+    if not (rate_scales and all(0.0 < s <= 1.0 for s in rate_scales)):
+        raise ValueError(f"rate_scales must be in (0, 1], got {tuple(rate_scales)!r}")
     rng = np.random.default_rng(seed)
     schedule = _Schedule(
         n_candidates=n_candidates,
         omega_max=omega_max,
+        rate_ball=omega_max,
         n_shapes=n_shapes,
         prior=prior,
         screen_duration=screen_duration,
@@ -221,10 +263,12 @@ def global_search(
     screened = 0
     best_data = math.inf
     for round_ in range(rounds):
-        part = _search_round(problem, schedule, rng, progress)
-        found.append(part.candidates)
-        screened += part.screened
-        previous, best_data = best_data, min(best_data, float(part.chi2_data.min()))
+        previous = best_data
+        for scale in rate_scales:
+            part = _search_round(problem, schedule.at_rate_scale(scale), rng, progress)
+            found.append(part.candidates)
+            screened += part.screened
+            best_data = min(best_data, float(part.chi2_data.min()))
         if progress:
             progress(
                 f"round {round_ + 1}: best χ² {best_data:.1f} on {len(part.epochs)} measurements"
@@ -268,7 +312,7 @@ def _search_round(
     prior, keep, omega_max = schedule.prior, schedule.keep, schedule.omega_max
     if prior is None:
         candidates = uniform_candidates(
-            problem, schedule.n_candidates, omega_max, rng, schedule.n_shapes
+            problem, schedule.n_candidates, schedule.rate_ball, rng, schedule.n_shapes
         )
         fit_prior = Prior.rates_only(omega_max)
     else:
@@ -295,7 +339,7 @@ def _search_round(
     # 1σ caps of the draws that refill the candidate set: the prior's, or 30° and a
     # tenth of the rate ball (and 0.5 in k).
     sigma_att = prior.attitude_sigma if prior is not None else math.radians(30.0)
-    sigma_rate = prior.omega_sigma if prior is not None else 0.1 * omega_max
+    sigma_rate = prior.omega_sigma if prior is not None else 0.1 * schedule.rate_ball
     cap = np.concatenate(
         [np.full(3, sigma_att), np.broadcast_to(sigma_rate, (3,)), np.full(2, 0.5)]
     )[: problem.n_params]

@@ -57,6 +57,14 @@ class InversionOptions:
         an attitude error; at 4°/s the 120 s fit nearest the truth was 12.7° and 0.62°/s
         off and lost the truth's basin on the 240 s window, while growing 1.5-fold reached
         it at 152 s.
+    pf_rate_scales : tuple of float
+        Scales of the rate ball that the PF's search without ``q0`` runs through, each
+        with its windows stretched by the inverse scale (see ``rate_scales`` of
+        :func:`filters.global_search.global_search`): a window tells states apart by the
+        rotation it spans, and over 30 s a slow rotator turns too little. With
+        ``(1, 0.25)`` a rotator at any rate from ``omega_max/16`` up is searched at a scale
+        where it turns per window at least a quarter of what one at ``omega_max`` turns at
+        the full scale.
     local_candidates : int
         Prior draws screened per shape when ``q0`` is given.
     global_candidates : int
@@ -168,6 +176,7 @@ class InversionOptions:
     init_window_s: float = 300.0
     pf_window_s: float = 1200.0
     pf_window_growth: float = 1.5
+    pf_rate_scales: tuple[float, ...] = (1.0, 0.25)
     local_candidates: int = 1024
     global_candidates: int = 20_000
     refine_keep: tuple[int, ...] | None = None
@@ -218,6 +227,8 @@ class InversionOptions:
             )
         if self.init not in ("search", "none"):
             raise ValueError(f"init must be 'search' or 'none', got {self.init!r}")
+        if not (self.pf_rate_scales and all(0 < s <= 1 for s in self.pf_rate_scales)):
+            raise ValueError(f"pf_rate_scales must be in (0, 1], got {self.pf_rate_scales!r}")
         if self.likelihood not in ("gaussian", "student"):
             raise ValueError(f"likelihood must be 'gaussian' or 'student', got {self.likelihood!r}")
 
@@ -267,6 +278,7 @@ _PARTICLE = frozenset(
     {
         "pf_window_s",
         "pf_window_growth",
+        "pf_rate_scales",
         "likelihood",
         "student_nu",
         "ess_threshold",

@@ -35,8 +35,9 @@ def initial_search(
     per_shape : bool
         Keep the counts for every shape (a bank needs fits of every shape).
     for_pf : bool
-        The PF's schedule: windows growing ``pf_window_growth``-fold up to ``pf_window_s``
-        and every search round run while the fit is poor.
+        The PF's schedule: windows growing ``pf_window_growth``-fold up to ``pf_window_s``,
+        every search round run while the fit is poor and, without a prior, each round run
+        at every scale of the rate ball in ``pf_rate_scales``.
     """
     opt = ctx.options
     prior = ctx.prior
@@ -68,6 +69,7 @@ def initial_search(
         twins=_twin_function(ctx, shapes, reciprocity=prior is None),
         groups=[ctx.symmetry(s) for s in shapes],
         rounds=ctx.options.search_rounds,
+        rate_scales=opt.pf_rate_scales if for_pf and prior is None else (1.0,),
         min_improvement=0.0 if for_pf else ctx.options.search_min_improvement,
         per_shape=per_shape,
         contention=ctx.options.search_contention,

@@ -283,6 +283,56 @@ def test_backward_and_forward_trajectories_agree():
     assert np.degrees(attitude_angle(backward[0].numpy(), truth[:, :4])).max() < 1e-4
 
 
+def test_a_rate_scale_searches_a_smaller_ball_on_longer_windows():
+    problem = _problem(random_quaternion((), 3), np.radians([0.2, 0.1, -0.1]), seconds=120)
+    messages = []
+    result = global_search(
+        problem,
+        n_candidates=64,
+        omega_max=math.radians(4.0),
+        seed=1,
+        screen_duration=16.0,
+        windows=(16.0, 48.0, 120.0),
+        keep=(8, 4, 2),
+        min_epochs=10,
+        iterations=2,
+        rate_scales=(1.0, 0.25),
+        progress=messages.append,
+    )
+    # Windows stretched fourfold (48 s → 192 s is beyond the last window and dropped).
+    windows = [m.split(" on ")[1].split(",")[0] for m in messages if m.startswith("refined")]
+    assert windows == ["16 s", "48 s", "120 s", "64 s", "120 s"]
+    assert result.screened == 128
+    # Both scales end on the same window, so their χ² compare.
+    assert problem.times[result.epochs[-1]] == 118.0
+    with pytest.raises(ValueError, match="rate_scales must be in"):
+        global_search(problem, rate_scales=(1.0, 1.5))
+
+
+def test_the_quarter_rate_scale_finds_a_slow_rotator():
+    # 0.6°/s over 8 min: 14° per 24 s screening window. The full ball alone ends 172° off
+    # on this light curve (χ² 853 on its last window); the quarter scale screens on 64 s.
+    direction = np.random.default_rng(2).standard_normal(3)
+    q0 = random_quaternion((), 102)
+    w0 = math.radians(0.6) * direction / np.linalg.norm(direction)
+    problem = _problem(q0, w0, seconds=480, sigma=0.01)
+    result = global_search(
+        problem,
+        n_candidates=2000,
+        omega_max=math.radians(4.0),
+        seed=7,
+        screen_duration=16.0,
+        windows=(16.0, 32.0, 64.0, 128.0, 256.0, 480.0),
+        keep=(32, 32, 32, 16, 8, 4),
+        min_epochs=20,
+        iterations=12,
+        rate_scales=(1.0, 0.25),
+    )
+    assert math.degrees(float(attitude_angle(result.q[0], q0))) < 3.0
+    assert np.allclose(result.omega[0], w0, atol=math.radians(0.05))
+    assert result.chi2[0] < 1.5 * len(result.epochs)
+
+
 def test_uniform_rates_fill_the_ball_uniformly():
     w = uniform_rates(20000, 2.0, np.random.default_rng(9))
     radius = np.linalg.norm(w, axis=1)

@@ -61,6 +61,8 @@ def test_request_errors_name_what_is_wrong():
         validate_request("pf", particles=0)
     with pytest.raises(ValueError, match="omega_max must be positive"):
         validate_request("pf", omega_max=math.nan)
+    with pytest.raises(ValueError, match="pf_rate_scales must be in"):
+        validate_request("pf", pf_rate_scales=(1.0, 0.0))
     with pytest.raises(ValueError, match="q0 must be 4 finite numbers"):
         validate_request("ukf", q0=[0.0, 0.0, 1.0])
     # The filters may start at q0 alone (zero rates with their 1σ).
