@@ -214,17 +214,28 @@ def test_prior_pulls_an_uninformative_fit_to_the_prior_mean():
     assert np.allclose(np.sqrt(np.diag(cov[0].numpy()))[:3], math.radians(2.0), rtol=0.05)
 
 
+def _search(problem, **settings):
+    """``global_search`` at up to 4°/s with 16-s screening (64 candidates, seed 1, two
+    iterations unless ``settings`` say otherwise)."""
+    defaults = dict(
+        n_candidates=64,
+        omega_max=math.radians(4.0),
+        seed=1,
+        screen_duration=16.0,
+        iterations=2,
+    )
+    return global_search(problem, **(defaults | settings))
+
+
 def test_global_search_finds_the_attitude_and_the_shape_from_a_uniform_prior():
     q0 = random_quaternion((), 6)
     w0 = np.radians([2.0, -1.5, 1.0])
     problem = _problem(q0, w0, seconds=120, sigma=0.01, shape=1)
-    result = global_search(
+    result = _search(
         problem,
         n_candidates=4000,
-        omega_max=math.radians(4.0),
         n_shapes=2,
         seed=7,
-        screen_duration=16.0,
         windows=(16.0, 48.0, 120.0),  # continuation: rates settle before the arc grows
         keep=(64, 16, 6),
         iterations=12,
@@ -244,17 +255,12 @@ def test_long_windows_are_sampled_densely_enough_for_the_fastest_rotation(
     # 120 s at up to 4°/s with at most 20° between samples: ⌈120 · 4 / 20⌉ = 24 epochs,
     # more than min_epochs = 10 (which alone would put 48° of rotation between samples).
     problem = _problem(random_quaternion((), 3), np.radians([1.0, 0.5, -1.0]), seconds=120)
-    result = global_search(
+    result = _search(
         problem,
-        n_candidates=64,
-        omega_max=math.radians(4.0),
-        seed=1,
-        screen_duration=16.0,
         windows=(16.0, 120.0),
         keep=(4, 2),
         min_epochs=10,
         max_rotation=math.radians(max_rotation_deg),
-        iterations=2,
     )
     assert len(result.epochs) == expected
     assert result.epochs[0] == 0 and problem.times[result.epochs[-1]] == 118.0
@@ -286,16 +292,11 @@ def test_backward_and_forward_trajectories_agree():
 def test_a_rate_scale_searches_a_smaller_ball_on_longer_windows():
     problem = _problem(random_quaternion((), 3), np.radians([0.2, 0.1, -0.1]), seconds=120)
     messages = []
-    result = global_search(
+    result = _search(
         problem,
-        n_candidates=64,
-        omega_max=math.radians(4.0),
-        seed=1,
-        screen_duration=16.0,
         windows=(16.0, 48.0, 120.0),
         keep=(8, 4, 2),
         min_epochs=10,
-        iterations=2,
         rate_scales=(1.0, 0.25),
         progress=messages.append,
     )
@@ -316,12 +317,10 @@ def test_the_quarter_rate_scale_finds_a_slow_rotator():
     q0 = random_quaternion((), 102)
     w0 = math.radians(0.6) * direction / np.linalg.norm(direction)
     problem = _problem(q0, w0, seconds=480, sigma=0.01)
-    result = global_search(
+    result = _search(
         problem,
         n_candidates=2000,
-        omega_max=math.radians(4.0),
         seed=7,
-        screen_duration=16.0,
         windows=(16.0, 32.0, 64.0, 128.0, 256.0, 480.0),
         keep=(32, 32, 32, 16, 8, 4),
         min_epochs=20,
