@@ -7,7 +7,6 @@ import pytest
 import torch
 from numba import njit
 
-from filters.attitude import random_quaternion
 from lightcurve.kernels import (
     FusedFlux,
     block_parameters,
@@ -19,8 +18,8 @@ from lightcurve.kernels import (
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer
 from shapes import Material, get_library, primitives
+from tests.lightcurve._geometry import random_geometry
 
-AU = 1.495978707e11
 MATERIALS = {
     "lambert": ("lambert", {"rd": 0.5}),
     "phong": ("phong", {"rd": 0.3, "rs": 0.4, "n": 50.0}),
@@ -41,15 +40,6 @@ def _log_exp(x, y, log_out, exp_out):
     for i in range(x.size):
         log_out[i] = elementary.log(x[i])
         exp_out[i] = elementary.exp(y[i])
-
-
-def random_geometry(n, seed):
-    rng = np.random.default_rng(seed)
-    sun = rng.normal(size=(n, 3))
-    sun *= AU / np.linalg.norm(sun, axis=1, keepdims=True)
-    obs = rng.normal(size=(n, 3))
-    obs *= rng.uniform(4e5, 4e7, (n, 1)) / np.linalg.norm(obs, axis=1, keepdims=True)
-    return random_quaternion(n, rng), sun, obs
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])

@@ -8,17 +8,7 @@ from filters.attitude import random_quaternion
 from lightcurve.reference import reference_flux
 from lightcurve.render import Renderer, flux_to_magnitude, lambert_sphere_flux
 from shapes import Material, get_library, primitives
-
-AU = 1.495978707e11
-
-
-def random_geometry(n, seed):
-    rng = np.random.default_rng(seed)
-    sun = rng.normal(size=(n, 3))
-    sun *= AU / np.linalg.norm(sun, axis=1, keepdims=True)
-    obs = rng.normal(size=(n, 3))
-    obs *= rng.uniform(4e5, 4e7, (n, 1)) / np.linalg.norm(obs, axis=1, keepdims=True)
-    return random_quaternion(n, rng), sun, obs
+from tests.lightcurve._geometry import AU, random_geometry
 
 
 def test_lambert_sphere_phase_curve():
