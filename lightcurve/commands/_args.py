@@ -1,5 +1,5 @@
 """Argument types and options shared by the command modules (vectors, inertia, progress,
-scenario studies)."""
+observation files and output folders, scenario studies)."""
 
 from __future__ import annotations
 
@@ -106,6 +106,16 @@ def add_scenario_arguments(
         parser.add_argument("--runs", type=int, default=runs, help="Monte Carlo runs")
     if seed is not None:
         parser.add_argument("--seed", type=int, default=seed, help=seed_help)
+
+
+def add_observation_files(parser: argparse.ArgumentParser) -> None:
+    """Add the positional ``FILE …``: one or more observation files (``args.files``)."""
+    parser.add_argument("files", nargs="+", metavar="FILE", help="observation files")
+
+
+def add_output_folder(parser: argparse.ArgumentParser) -> None:
+    """Add the required ``--out DIR``: the output folder (``args.out``, a path)."""
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 
 
 def add_false_alarm_option(parser: argparse.ArgumentParser, help_text: str) -> None:

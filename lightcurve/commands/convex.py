@@ -21,9 +21,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-from pathlib import Path
 
-from lightcurve.commands._args import add_progress_option, float_vector, show_progress
+from lightcurve.commands._args import (
+    add_observation_files,
+    add_output_folder,
+    add_progress_option,
+    float_vector,
+    show_progress,
+)
 
 NAME = "convex"
 HELP = "convex shape + spin inversion (pole, sidereal period, shape OBJ)"
@@ -31,7 +36,7 @@ ORDER = 42
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("files", nargs="+", metavar="FILE", help="observation files")
+    add_observation_files(parser)
     parser.add_argument(
         "--pole",
         type=float_vector(2),
@@ -98,7 +103,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also draw DIR/shape.png and DIR/fit.png (matplotlib: about 1 s more)",
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    add_output_folder(parser)
 
 
 def _settings(args: argparse.Namespace):

@@ -20,6 +20,8 @@ import numpy as np
 
 from lightcurve.commands._args import (
     add_false_alarm_option,
+    add_observation_files,
+    add_output_folder,
     add_progress_option,
     float_vector,
     progress_bar,
@@ -31,7 +33,7 @@ ORDER = 40
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("files", nargs="+", metavar="FILE", help="observation files")
+    add_observation_files(parser)
     parser.add_argument(
         "--range",
         nargs=2,
@@ -61,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_false_alarm_option(parser, "glint false-alarm probability for --glints")
     add_progress_option(parser, "the period scan")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    add_output_folder(parser)
 
 
 def run(args: argparse.Namespace) -> int:
