@@ -101,7 +101,7 @@ def add_scenario_arguments(
         Help of ``--seed``.
     """
     parser.add_argument("scenario", type=Path, help=scenario_help)
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    add_output_folder(parser)
     if runs is not None:
         parser.add_argument("--runs", type=int, default=runs, help="Monte Carlo runs")
     if seed is not None:

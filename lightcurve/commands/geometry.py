@@ -70,7 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_shadow_options(parser, None, "TLEs; default: drop over a span, flag with --epochs-from")
     parser.add_argument("--name", help="object name for the header (default: from the TLE)")
-    parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
+    parser.add_argument(
+        "--out", required=True, metavar="FILE", help="output file (.csv or .parquet)"
+    )
 
 
 def _span(args: argparse.Namespace) -> np.ndarray:

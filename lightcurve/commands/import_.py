@@ -107,7 +107,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="accept several rows at one time (e.g. several objects in one table)",
     )
     parser.add_argument("--name", help="object name for the header")
-    parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
+    parser.add_argument(
+        "--out", required=True, metavar="FILE", help="output file (.csv or .parquet)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -47,7 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--duration", type=float, default=600.0, help="seconds")
     parser.add_argument("--step", type=float, default=60.0, help="output step, s")
-    parser.add_argument("--out", help="also write the table to this CSV file (default: print only)")
+    parser.add_argument(
+        "--out", metavar="FILE", help="also write the table to this CSV file (default: print only)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -118,7 +118,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(the table when the shape has one, else none)",
     )
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
-    parser.add_argument("--out", required=True, help="output file (.csv or .parquet)")
+    parser.add_argument(
+        "--out", required=True, metavar="FILE", help="output file (.csv or .parquet)"
+    )
 
 
 def _ccd(pairs: list[str]) -> CCDNoise:

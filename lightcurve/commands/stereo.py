@@ -10,7 +10,8 @@ The scenario file format is described in ``docs/stereo.md``.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "stereo"
 
@@ -23,10 +24,7 @@ ORDER = 62
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``lightcurve stereo``."""
-    parser.add_argument("scenario", type=Path, help="scenario TOML file")
-    parser.add_argument("--runs", type=int, default=200, help="Monte Carlo runs")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    add_scenario_arguments(parser, "scenario TOML file", runs=200, seed=0)
 
 
 def run(args: argparse.Namespace) -> int:
