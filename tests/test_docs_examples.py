@@ -58,3 +58,15 @@ def test_the_brdf_page_shows_the_registry_as_it_is():
         with pytest.raises(brdf.BRDFParameterError) as error:
             brdf.get(name, **params)
         assert f"\n{error.value}\n" in text
+
+
+def test_the_csv_example_is_a_valid_observation_file(tmp_path):
+    from lightcurve import io
+
+    text = (DOCS / "formats.md").read_text()
+    example = re.search(r"^### CSV\n.*?^```\n(.*?)^```", text, re.S | re.M).group(1)
+    (tmp_path / "example.csv").write_text(example)
+    observations = io.read(tmp_path / "example.csv")
+    assert len(observations) == 1 and observations.meta["frame"] == "GCRS"
+    io.write(observations, tmp_path / "written.csv")
+    assert example.splitlines()[-1].split(",")[0] in (tmp_path / "written.csv").read_text()
