@@ -70,3 +70,36 @@ def test_the_csv_example_is_a_valid_observation_file(tmp_path):
     assert len(observations) == 1 and observations.meta["frame"] == "GCRS"
     io.write(observations, tmp_path / "written.csv")
     assert example.splitlines()[-1].split(",")[0] in (tmp_path / "written.csv").read_text()
+
+
+FENCED = re.compile(r"^```.*?^```", re.S | re.M)
+
+
+def anchors(page: Path) -> set[str]:
+    """GitHub's anchors of a page's headings: lower case, punctuation dropped, spaces → '-'."""
+    found = set()
+    for heading in re.findall(r"^#+ (.+)$", FENCED.sub("", page.read_text()), re.M):
+        found.add(re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-"))
+    return found
+
+
+def test_links_between_pages_resolve():
+    broken = []
+    for page in PAGES:
+        for target in re.findall(r"\]\(([^)\s]+)\)", FENCED.sub("", page.read_text())):
+            if target.startswith(("http://", "https://")):
+                continue
+            path, _, anchor = target.partition("#")
+            linked = (page.parent / path) if path else page
+            if not linked.exists():
+                broken.append(f"{page.name}: {target} (no such file)")
+            elif anchor and linked.suffix == ".md" and anchor not in anchors(linked):
+                broken.append(f"{page.name}: {target} (no such heading)")
+    assert not broken
+
+
+def test_every_docs_page_is_linked_from_the_guide_or_readme():
+    linked = (DOCS / "index.md").read_text() + (ROOT / "README.md").read_text()
+    assert [
+        p.name for p in DOCS.glob("*.md") if p.name != "index.md" and p.name not in linked
+    ] == []
