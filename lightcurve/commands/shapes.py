@@ -148,6 +148,10 @@ def run(args: argparse.Namespace) -> int:
 def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     names = library.names()
     print(f"# {library.path}{' (read-only)' if library.read_only else ''}: {len(names)} shapes")
+    if not library.path.exists():
+        print(
+            f"# (no library there yet: `lightcurve shapes add NAME MESH --library {library.path}`)"
+        )
     rows = [("name", "facets", "unit", "groups", "self-shadowing", "source")]
     for name in names:
         entry = library.info(name)

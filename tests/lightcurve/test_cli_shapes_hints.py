@@ -1,4 +1,5 @@
-"""`shapes add --brdf KIND` without a required parameter says which `--param` to pass."""
+"""`shapes add` and `shapes list` tell a user what to do next: the `--param` a BRDF needs, how
+to start a library in an empty folder."""
 
 from lightcurve.cli import main
 
@@ -15,3 +16,12 @@ def test_a_missing_brdf_parameter_names_the_option_to_pass(tmp_path, capsys):
     assert error.rstrip().endswith("needs parameter(s) c: give them, e.g. --param c=0.1")
     assert not (library / "manifest.json").exists()
     assert main([*command, "--brdf", "lommel-seeliger", "--param", "c=0.1"]) == 0
+
+
+def test_listing_a_folder_that_holds_no_library_says_how_to_start_one(tmp_path, capsys):
+    missing = tmp_path / "shapes"
+    assert main(["shapes", "list", "--library", str(missing)]) == 0
+    out = capsys.readouterr().out
+    assert "0 shapes" in out
+    assert f"no library there yet: `lightcurve shapes add NAME MESH --library {missing}`" in out
+    assert not missing.exists()
