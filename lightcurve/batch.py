@@ -334,8 +334,14 @@ def _execute(
     if not todo:
         return
     if scheduler:
-        from dask.distributed import Client
-        from dask.distributed import as_completed as dask_completed
+        try:
+            from dask.distributed import Client
+            from dask.distributed import as_completed as dask_completed
+        except ImportError:
+            raise ValueError(
+                "--scheduler needs Dask's distributed scheduler, which is not installed: "
+                "pip install 'space-lightcurves[distributed]' (or dask[distributed])"
+            ) from None
 
         with Client(scheduler) as client:
             futures = {

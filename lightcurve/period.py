@@ -349,6 +349,12 @@ def period_search(
     f_min, f_max = 1.0 / (high * 3600.0), 1.0 / (low * 3600.0)
     step = 1.0 / (oversample * span)
     count = math.ceil((f_max - f_min) / step) + 1
+    if count < 3:  # the refinement around the best trial would leave the range
+        raise ValueError(
+            f"the period range {low:g}-{high:g} h is narrower than the periodogram's resolution "
+            f"over a {span / 3600:.3g}-h span (trial frequencies {step * 3600:.3g} per hour "
+            "apart): widen --range or use a longer light curve"
+        )
     if count > MAX_FREQUENCIES:
         raise ValueError(
             f"the period range {low}-{high} h needs {count} trial frequencies over a "

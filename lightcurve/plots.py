@@ -41,6 +41,12 @@ def load_result(path: str | Path) -> InversionFolder:
     path = Path(path)
     summary_file = path / "summary.json"
     if not summary_file.is_file():
+        inputs = sorted(str(found.parent) for found in path.glob("*/summary.json"))
+        if inputs:  # the batch folder of `lightcurve invert --out`
+            shown = ", ".join(inputs[:3]) + (", …" if len(inputs) > 3 else "")
+            raise FileNotFoundError(
+                f"{path}: the folder of a whole batch; plot one input's result folder: {shown}"
+            )
         raise FileNotFoundError(f"{path}: no summary.json (not an inversion result folder?)")
     summary = json.loads(summary_file.read_text())
     if summary.get("status") != "ok":

@@ -148,6 +148,10 @@ def run(args: argparse.Namespace) -> int:
 def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     names = library.names()
     print(f"# {library.path}{' (read-only)' if library.read_only else ''}: {len(names)} shapes")
+    if not library.path.exists():
+        print(
+            f"# (no library there yet: `lightcurve shapes add NAME MESH --library {library.path}`)"
+        )
     rows = [("name", "facets", "unit", "groups", "self-shadowing", "source")]
     for name in names:
         entry = library.info(name)
@@ -250,10 +254,27 @@ def _read_parts(path: str) -> Any:
         raise shapes.ShapeError(f"--parts {path}: unreadable JSON ({exc})") from None
 
 
+def _material(kind: str, items: Sequence[str]) -> shapes.Material:
+    """The material of ``--brdf KIND --param KEY=VALUE …``; a missing parameter is named with
+    the model's typical value as the option to pass."""
+    from shapes.material import BRDF_PARAMETERS
+
+    params = _params(items)
+    try:
+        return shapes.Material(kind, params)
+    except shapes.ShapeError as exc:
+        missing = [name for name in BRDF_PARAMETERS.get(kind, ((), ()))[0] if name not in params]
+        if not missing:
+            raise
+        typical = {spec.name: spec.default for spec in brdf.describe(kind).parameters}
+        example = " ".join(f"--param {name}={typical[name]:g}" for name in missing)
+        raise shapes.ShapeError(f"{exc}: give them, e.g. {example}") from None
+
+
 def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     if args.param and not args.brdf:
         raise shapes.ShapeError("--param needs --brdf KIND")
-    material = shapes.Material(args.brdf, _params(args.param)) if args.brdf else None
+    material = _material(args.brdf, args.param) if args.brdf else None
     if material is not None:
         brdf.get(material.brdf, **material.params)  # parameter ranges (BRDFParameterError)
     inertia = "auto" if args.inertia is None else _floats(args.inertia, "--inertia", (3, 6))

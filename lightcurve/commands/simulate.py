@@ -148,7 +148,10 @@ def run(args: argparse.Namespace) -> int:
     from shapes import get_library
 
     if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):
-        raise ValueError("--profile torque-free needs --q0 and --omega0")
+        raise ValueError(
+            "--profile torque-free (the default) needs --q0 and --omega0, the attitude and "
+            "body rates at the first epoch"
+        )
     if args.profile != "torque-free" and args.omega0 is not None:
         raise ValueError(f"--omega0 does not apply to --profile {args.profile}")
     if args.profile not in ("torque-free", "inertial") and args.q0 is not None:

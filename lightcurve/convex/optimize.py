@@ -134,9 +134,12 @@ def levenberg_marquardt(
             candidate[:, index] += step
             if project is not None:
                 candidate = project(candidate)
-            r_new, _ = residuals(candidate, False)
+            # A step too long can overflow the model; its χ² is then not finite and the step
+            # is rejected like any other that does not lower χ², without numpy's warnings.
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                r_new, _ = residuals(candidate, False)
+                value = (r_new * r_new).sum(axis=1)
             evaluations[sub] += 1
-            value = (r_new * r_new).sum(axis=1)
             with np.errstate(invalid="ignore"):
                 gain = (chi2[sub] - value) / np.maximum(predicted, np.finfo(float).tiny)
                 ok = np.isfinite(value) & (value < chi2[sub]) & (gain > 0)

@@ -167,7 +167,7 @@ def load_toml(path: str | Path) -> TomlTable:
     Raises
     ------
     OSError
-        The file cannot be read.
+        The file cannot be read (a missing file or a folder is named in one line).
     ScenarioError
         Not valid TOML (the parser's message carries the line and column).
     """
@@ -175,6 +175,10 @@ def load_toml(path: str | Path) -> TomlTable:
     try:
         with path.open("rb") as handle:
             data = tomllib.load(handle)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such scenario file") from None
+    except IsADirectoryError:
+        raise IsADirectoryError(f"{path}: a folder, not a scenario file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     return TomlTable(data, path)

@@ -159,3 +159,13 @@ def test_bad_inputs():
         period_search(obs, (-1.0, 5.0))
     with pytest.raises(ValueError, match="narrow --range"):
         period_search(obs, (1e-4, 100.0))
+
+
+def test_a_range_narrower_than_the_resolution_is_refused():
+    # 20 minutes of data cannot resolve periods between 5.75 and 5.77 h: the search used to
+    # return a period outside the range (1.34 h, σ = ∞).
+    mjd = 60000 + np.linspace(0, 1200, 600) / 86400
+    obs = _table(mjd, np.sin(mjd * 5000), 0.01, np.zeros(600, int))
+    with pytest.raises(ValueError, match="narrower than the periodogram's resolution"):
+        period_search(obs, (5.75, 5.77))
+    assert 0.02 <= period_search(obs, (0.02, 1.0), orders=(2,)).period_h <= 1.0
