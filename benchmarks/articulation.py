@@ -253,7 +253,11 @@ def speed(rows: int, exact_rows: int, repeats: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer epochs and rows")
-    parser.add_argument("--sections", default="accuracy,speed")
+    parser.add_argument(
+        "--sections",
+        default="accuracy,speed",
+        help="comma-separated parts to run: accuracy (against the ray-cast reference), speed",
+    )
     args = parser.parse_args(argv)
     sections = set(args.sections.split(","))
     report: dict = {"machine": machine_info(), "seed": SEED}

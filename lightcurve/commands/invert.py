@@ -96,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="search",
         help="search: find the initial state (around --q0/--omega0 when given, else "
         "globally); none (ukf, mmae): start the filters at --q0 and --omega0 (zero rates "
-        "without it) with their 1-sigma (default search)",
+        "without it) with their 1-sigma",
     )
     parser.add_argument(
         "--modes",
