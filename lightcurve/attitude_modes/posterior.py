@@ -9,9 +9,11 @@ do not rule out. The three offset angles are therefore sampled from the posterio
 the likelihood the fit uses (``exp(−χ²/2)`` of the whitened residuals) times the same prior
 — by the affine-invariant ensemble sampler of ``emcee`` (Foreman-Mackey, Hogg, Lang &
 Goodman 2013, "emcee: The MCMC Hammer"; Goodman & Weare 2010, "Ensemble samplers with
-affine invariance"), its walkers started from the Laplace normal around the fit. The
+affine invariance"), its walkers started from the Laplace normal around the fit, the
+chain grown until its kept part spans twenty integrated autocorrelation times (or reaches
+:data:`MAX_STEPS`; the chain-length advice of emcee's documentation). The
 small-angle coordinates ``δ`` carry the Lebesgue measure; the Haar measure of SO(3)
-differs from it by ``(2 − 2 cos|δ|)/|δ|²``, under 1 % within 20°, and is left out.
+differs from it by ``(2 − 2 cos|δ|)/|δ|²``, 1 % at 20°, and is left out.
 
 From the samples (after the burn-in): equal-tailed 68 % and 95 % intervals of the roll,
 pitch and yaw of the offset (3-2-1, as the fitted offsets), and the joint region as a rise
@@ -37,12 +39,16 @@ from lightcurve.profiles import euler_offsets_deg
 
 #: Credible levels of the reported intervals and regions.
 LEVELS = (0.68, 0.95)
-#: Ensemble size, chain length and burn-in (steps) of the sampler: the walkers cross a
-#: glint valley a few degrees long in ~30 steps (integrated autocorrelation time measured
-#: on a nadir box-wing night), so 400 kept steps give several hundred independent samples.
+#: Ensemble size and chain length (steps) of the sampler: the walkers cross a glint valley
+#: a few degrees long in ~30 steps (integrated autocorrelation time ``τ`` measured on a
+#: nadir box-wing night), so 400 kept steps give several hundred independent samples.
+#: The chain is extended by :data:`CHUNK` steps while the kept part is shorter than
+#: :data:`AUTOCORRELATIONS` ``τ``, up to :data:`MAX_STEPS`; the first third is burn-in.
 WALKERS = 32
 STEPS = 600
-BURN_IN = 200
+CHUNK = 200
+MAX_STEPS = 2000
+AUTOCORRELATIONS = 20.0
 #: ``laplace_ok`` when each sampled 95 % bound of every small-angle component lies within
 #: this fraction of the Laplace half-width ``1.96 σ`` of the Laplace bound (the bounds'
 #: Monte Carlo scatter is ~7 % of it with ~400 independent samples).
@@ -69,12 +75,12 @@ class OffsetPosterior:
     samples : int
         Posterior samples kept (walkers × steps after the burn-in).
     walkers, steps, burn_in : int
-        The sampler's settings.
+        Ensemble size, chain length and the steps discarded.
     acceptance : float
         Mean acceptance fraction of the walkers.
     autocorrelation_steps : float
-        Largest integrated autocorrelation time of the three components (steps; Goodman &
-        Weare 2010); ``samples / autocorrelation_steps`` estimates the independent samples.
+        Largest integrated autocorrelation time ``τ`` of the three components (steps;
+        Goodman & Weare 2010) over the kept steps.
     """
 
     intervals_deg: dict[str, np.ndarray]
@@ -96,7 +102,13 @@ class OffsetPosterior:
             "burn_in": int(self.burn_in),
             "acceptance": float(self.acceptance),
             "autocorrelation_steps": float(self.autocorrelation_steps),
+            "effective_samples": float(self.effective_samples),
         }
+
+    @property
+    def effective_samples(self) -> float:
+        """Independent samples, estimated: walkers × kept steps / ``τ``."""
+        return self.walkers * (self.steps - self.burn_in) / max(self.autocorrelation_steps, 1.0)
 
 
 def level_label(level: float) -> str:
@@ -114,7 +126,7 @@ def sample_offset_posterior(
     seed: int | np.random.SeedSequence,
     walkers: int = WALKERS,
     steps: int = STEPS,
-    burn_in: int = BURN_IN,
+    max_steps: int = MAX_STEPS,
 ) -> OffsetPosterior:
     """Sample the posterior of the offset ``δ`` (module doc).
 
@@ -133,15 +145,20 @@ def sample_offset_posterior(
         report.
     seed : int or numpy.random.SeedSequence
         Seeds the walkers' start and the sampler's moves.
-    walkers, steps, burn_in : int
-        Ensemble size, chain length, steps discarded (``burn_in < steps``).
+    walkers : int
+        Ensemble size (at least 8).
+    steps, max_steps : int
+        Shortest and longest chain; the chain grows from ``steps`` by :data:`CHUNK` while
+        its kept two thirds are shorter than :data:`AUTOCORRELATIONS` ``τ``.
 
     Returns
     -------
     OffsetPosterior
     """
-    if not 0 <= burn_in < steps:
-        raise ValueError(f"burn_in must be in [0, steps), got {burn_in} of {steps}")
+    if walkers < 8 or not 3 <= steps <= max_steps:
+        raise ValueError(
+            f"need walkers >= 8 and 3 <= steps <= max_steps, got {walkers}, {steps}, {max_steps}"
+        )
     rng = np.random.default_rng(seed)
 
     def log_probability(delta: np.ndarray) -> np.ndarray:
@@ -154,8 +171,14 @@ def sample_offset_posterior(
     start = rng.multivariate_normal(solution.delta, covariance, size=walkers)
     sampler = emcee.EnsembleSampler(walkers, 3, log_probability, vectorize=True)
     sampler.random_state = np.random.RandomState(rng.integers(2**32)).get_state()
-    sampler.run_mcmc(start, steps)
-    chain = sampler.get_chain(discard=burn_in)  # (steps − burn_in, walkers, 3)
+    state = sampler.run_mcmc(start, steps)
+    while True:
+        burn_in = sampler.iteration // 3
+        chain = sampler.get_chain(discard=burn_in)  # (kept steps, walkers, 3)
+        tau = float(np.max(emcee.autocorr.integrated_time(chain, tol=0)))
+        if len(chain) >= AUTOCORRELATIONS * tau or sampler.iteration >= max_steps:
+            break
+        state = sampler.run_mcmc(state, min(CHUNK, max_steps - sampler.iteration))
     delta = chain.reshape(-1, 3)
     rise = -2.0 * sampler.get_log_prob(discard=burn_in, flat=True)
     angles = _unwrapped_deg(
@@ -171,17 +194,16 @@ def sample_offset_posterior(
     bounds = np.quantile(delta, [0.025, 0.975], axis=0)
     laplace = solution.delta + np.outer([-_Z95, _Z95], sigma)
     laplace_ok = bool(np.all(np.abs(bounds - laplace) <= LAPLACE_TOLERANCE * _Z95 * sigma))
-    tau = emcee.autocorr.integrated_time(chain, tol=0)
     return OffsetPosterior(
         intervals_deg=intervals,
         region_rise=regions,
         laplace_ok=laplace_ok,
         samples=len(delta),
         walkers=walkers,
-        steps=steps,
+        steps=sampler.iteration,
         burn_in=burn_in,
         acceptance=float(np.mean(sampler.acceptance_fraction)),
-        autocorrelation_steps=float(np.max(tau)),
+        autocorrelation_steps=tau,
     )
 
 
