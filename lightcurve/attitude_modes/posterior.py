@@ -10,7 +10,7 @@ the likelihood the fit uses (``exp(−χ²/2)`` of the whitened residuals) times
 — by the affine-invariant ensemble sampler of ``emcee`` (Foreman-Mackey, Hogg, Lang &
 Goodman 2013, "emcee: The MCMC Hammer"; Goodman & Weare 2010, "Ensemble samplers with
 affine invariance"), its walkers started from the Laplace normal around the fit, the
-chain grown until its kept part spans twenty integrated autocorrelation times (or reaches
+chain grown until its kept part spans twelve integrated autocorrelation times (or reaches
 :data:`MAX_STEPS`; the chain-length advice of emcee's documentation). The
 small-angle coordinates ``δ`` carry the Lebesgue measure; the Haar measure of SO(3)
 differs from it by ``(2 − 2 cos|δ|)/|δ|²``, 1 % at 20°, and is left out.
@@ -47,8 +47,8 @@ LEVELS = (0.68, 0.95)
 WALKERS = 32
 STEPS = 600
 CHUNK = 200
-MAX_STEPS = 2000
-AUTOCORRELATIONS = 20.0
+MAX_STEPS = 1200
+AUTOCORRELATIONS = 12.0
 #: ``laplace_ok`` when each sampled 95 % bound of every small-angle component lies within
 #: this fraction of the Laplace half-width ``1.96 σ`` of the Laplace bound (the bounds'
 #: Monte Carlo scatter is ~7 % of it with ~400 independent samples).
