@@ -40,6 +40,7 @@ import math
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from unittest import mock
 
 import numpy as np
 from scipy.stats import chi2 as chi2_distribution
@@ -85,9 +86,6 @@ def _timed(sampler):
             _POSTERIOR_CPU.append(time.process_time() - start)
 
     return timed
-
-
-hypotheses.sample_offset_posterior = _timed(hypotheses.sample_offset_posterior)
 
 
 def _geometry(rng: np.random.Generator, cadence_s: float):
@@ -136,9 +134,11 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
         true_offset_q = None
     _POSTERIOR_CPU.clear()
+    sampler = _timed(hypotheses.sample_offset_posterior)
     t0, cpu0 = time.perf_counter(), time.process_time()
     try:
-        result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
+        with mock.patch.object(hypotheses, "sample_offset_posterior", sampler):
+            result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
     except (ValueError, RuntimeError) as exc:  # a failed inversion is a wrong call
         record.update(called="error", probability=0.0, error=str(exc))
         return record
