@@ -22,6 +22,14 @@ its components along the weak axes the identification reports (each checked agai
 axis's 95 % interval) and across them, and tumbling objects called stabilised at
 probability ≥ 0.9. ``offsets_within_2_deg_or_weak_interval`` counts the stabilised objects
 whose error is within 2° across the weak axes and inside the interval along each.
+
+Coverage of the true offset (stabilised objects called right), at 68 % and 95 %, per axis
+and jointly: ``laplace`` — the error's small-angle components (body axes) within
+``z σ`` of the Laplace 1σ, and jointly its Mahalanobis distance under the Laplace
+covariance ``(JᵀJ + P)⁻¹`` (recomputed at the fit) within ``χ²₃``; ``sampled`` — the true
+roll, pitch and yaw inside the sampled posterior's intervals, and jointly the truth's rise
+of ``−2 ln`` posterior above the fit within the sampled region's. ``cpu_s`` is the whole
+inversion with the mode test, ``posterior_cpu_s`` the sampler's part of it.
 """
 
 from __future__ import annotations
@@ -32,8 +40,11 @@ import math
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from unittest import mock
 
 import numpy as np
+from scipy.stats import chi2 as chi2_distribution
+from scipy.stats import norm
 
 from benchmarks._machine import machine_info
 from filters.attitude import (
@@ -46,18 +57,35 @@ from filters.attitude import (
     rotate,
 )
 from lightcurve.atomic import atomic_write_json, json_ready
-from lightcurve.attitude_modes import MODE_HYPOTHESES
+from lightcurve.attitude_modes import MODE_HYPOTHESES, hypotheses
+from lightcurve.attitude_modes.evidence import ATTITUDE_PRECISION
 from lightcurve.attitude_modes.offsets import ProfileFit, posterior_cost
+from lightcurve.attitude_modes.posterior import LEVELS, level_label
 from lightcurve.ephemeris import CircularOrbit, orbit_geometry
 from lightcurve.inversion import invert, shape_symmetry
 from lightcurve.measurement import PhotometricModel
-from lightcurve.profiles import offset_quaternion, profile_attitude
+from lightcurve.profiles import euler_offsets_deg, offset_quaternion, profile_attitude
 from lightcurve.simulate import GaussianNoise, simulate
 from lightcurve.sites import get_site
 from shapes import get_library
 
 NOISE_MAG = 0.03
 STABILISED = tuple(MODE_HYPOTHESES)
+#: CPU seconds of the offset-posterior sampler in this process (see :func:`_timed`).
+_POSTERIOR_CPU: list[float] = []
+
+
+def _timed(sampler):
+    """``sampler`` that also appends its CPU time to :data:`_POSTERIOR_CPU`."""
+
+    def timed(*args, **kwargs):
+        start = time.process_time()
+        try:
+            return sampler(*args, **kwargs)
+        finally:
+            _POSTERIOR_CPU.append(time.process_time() - start)
+
+    return timed
 
 
 def _geometry(rng: np.random.Generator, cadence_s: float):
@@ -105,14 +133,18 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         )
         record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
         true_offset_q = None
+    _POSTERIOR_CPU.clear()
+    sampler = _timed(hypotheses.sample_offset_posterior)
     t0, cpu0 = time.perf_counter(), time.process_time()
     try:
-        result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
+        with mock.patch.object(hypotheses, "sample_offset_posterior", sampler):
+            result = invert(obs, {"box_wing": shape}, method="ukf", modes=True, seed=index)
     except (ValueError, RuntimeError) as exc:  # a failed inversion is a wrong call
         record.update(called="error", probability=0.0, error=str(exc))
         return record
     record["runtime_s"] = time.perf_counter() - t0
     record["cpu_s"] = time.process_time() - cpu0
+    record["posterior_cpu_s"] = float(sum(_POSTERIOR_CPU))
     mode = result.attitude_mode
     record.update(
         n_measurements=len(obs),
@@ -123,25 +155,43 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
         none_fits=bool(result.none_fits),
     )
     if true_offset_q is not None and mode["attitude_mode"] == record["truth"]:
+        check = _offset_check(
+            offset_quaternion(mode["attitude_offsets_deg"]),
+            true_offset_q,
+            mode["attitude_offset_weak_axes"],
+            shape_symmetry(shape).quaternions,
+        )
+        rise, mahalanobis2 = _truth_against_fit(
+            obs,
+            shape,
+            geometry,
+            record["truth"],
+            true_offset_q,
+            offset_quaternion(mode["attitude_offsets_deg"]),
+            check.pop("folded_estimate"),
+        )
         record.update(
             offset_sigma_deg=mode["attitude_offset_sigma_deg"],
-            **_offset_check(
-                offset_quaternion(mode["attitude_offsets_deg"]),
-                true_offset_q,
-                mode["attitude_offset_weak_axes"],
-                shape_symmetry(shape).quaternions,
-            ),
-            truth_minus_fit_cost=_truth_minus_fit_cost(
-                obs, shape, geometry, record["truth"], true_offset_q, mode["attitude_offsets_deg"]
-            ),
+            **check,
+            truth_minus_fit_cost=rise,
+            laplace_mahalanobis2=mahalanobis2,
+            offset_intervals_deg=mode["attitude_offset_intervals_deg"],
+            offset_region_rise=mode["attitude_offset_region_rise"],
+            offset_laplace_ok=mode["attitude_offset_laplace_ok"],
+            offset_posterior=mode["attitude_offset_posterior"],
         )
+        record["coverage"] = _coverage(record)
     return record
 
 
-def _truth_minus_fit_cost(obs, shape, geometry, label, truth_q, fitted_deg) -> float:
-    """``−2 ln`` posterior at the true offset minus that at the fitted one (default offset
-    prior, 10° per axis; flat for ``inertial``): negative when the search missed a better
-    optimum, positive when the data prefer the fit to the truth."""
+def _truth_against_fit(
+    obs, shape, geometry, label, truth_q, fitted_q, folded_q
+) -> tuple[float, float]:
+    """``−2 ln`` posterior at the true offset minus that at the fitted one ``fitted_q``
+    (default offset prior, 10° per axis; flat for ``inertial``): negative when the search
+    missed a better optimum, positive when the data prefer the fit to the truth; and the
+    truth's squared Mahalanobis distance under the Laplace covariance at ``folded_q`` (the
+    fit's symmetry-equivalent nearest the truth)."""
     profile, yaw = MODE_HYPOTHESES[label]
     model = PhotometricModel(obs, {"box_wing": shape})
     keep = np.isin(geometry.mjd, obs.mjd)
@@ -155,18 +205,47 @@ def _truth_minus_fit_cost(obs, shape, geometry, label, truth_q, fitted_deg) -> f
     )
     prior_sigma = None if profile == "inertial" else math.radians(10.0)
     costs = []
-    for q in (truth_q, offset_quaternion(fitted_deg)):
+    for q in (truth_q, fitted_q):
         fit = ProfileFit(model, 0, q_ref, q)
         delta = quaternion_to_rotation_vector(quaternion_canonical(q))
         prior = 0.0 if prior_sigma is None else float(delta @ delta) / prior_sigma**2
         costs.append(float(posterior_cost(fit, np.zeros(3), None)) + prior)
-    return costs[0] - costs[1]
+    # The Laplace Hessian at the fit, in the coordinates of truth = exp(e) ⊗ fit.
+    j = ProfileFit(model, 0, q_ref, folded_q).jacobian(np.zeros(3))
+    precision = ATTITUDE_PRECISION if prior_sigma is None else 1.0 / prior_sigma**2
+    e = quaternion_to_rotation_vector(
+        quaternion_canonical(quaternion_multiply(truth_q, quaternion_conjugate(folded_q)))
+    )
+    return costs[0] - costs[1], float(e @ (j.T @ j + precision * np.eye(3)) @ e)
+
+
+def _coverage(record: dict) -> dict:
+    """Is the truth inside the 68 % and 95 % intervals (per axis) and regions (jointly),
+    Laplace and sampled (module doc)?"""
+    e = np.asarray(record["offset_error_components_deg"])
+    sigma = np.asarray(record["offset_sigma_deg"])
+    truth = np.asarray(record["true_offsets_equivalent_deg"])
+    coverage: dict = {"laplace": {}, "sampled": {}}
+    for level in LEVELS:
+        key = level_label(level)
+        z = float(norm.ppf((1.0 + level) / 2.0))
+        lo, hi = np.asarray(record["offset_intervals_deg"][key]).T
+        coverage["laplace"][key] = {
+            "axes": (np.abs(e) <= z * sigma).tolist(),
+            "joint": record["laplace_mahalanobis2"] <= chi2_distribution.ppf(level, 3),
+        }
+        coverage["sampled"][key] = {
+            "axes": ((lo <= truth) & (truth <= hi)).tolist(),
+            "joint": record["truth_minus_fit_cost"] <= record["offset_region_rise"][key],
+        }
+    return coverage
 
 
 def _offset_check(estimated: np.ndarray, truth: np.ndarray, weak: list, group) -> dict:
     """Offset error, symmetry-folded (for ``inertial`` the offsets are those of the whole
     attitude from the inertial axes), split into its components along the reported weak
-    axes (each checked against its interval) and across them."""
+    axes (each checked against its interval) and across them; the truth's roll, pitch and
+    yaw in the estimate's branch (``g⁻¹ ⊗ truth``, unwrapped to ±180° of the estimate's)."""
     folded = [quaternion_multiply(g, estimated) for g in group]
     errors = [math.degrees(float(attitude_angle(q, truth))) for q in folded]
     best = int(np.argmin(errors))
@@ -177,6 +256,9 @@ def _offset_check(estimated: np.ndarray, truth: np.ndarray, weak: list, group) -
             quaternion_canonical(quaternion_multiply(truth, quaternion_conjugate(folded[best])))
         )
     )
+    fitted = euler_offsets_deg(estimated)
+    equivalent = euler_offsets_deg(quaternion_multiply(quaternion_conjugate(group[best]), truth))
+    components = e.tolist()
     along, inside = [], []
     for axis in weak:
         u = np.asarray(rotate(group[best], np.asarray(axis["axis"])))
@@ -185,7 +267,10 @@ def _offset_check(estimated: np.ndarray, truth: np.ndarray, weak: list, group) -
         lo, hi = axis["interval_deg"]
         inside.append(bool(lo <= along[-1] <= hi))
     return {
+        "folded_estimate": folded[best],
         "offset_error_deg": errors[best],
+        "offset_error_components_deg": components,
+        "true_offsets_equivalent_deg": (fitted + (equivalent - fitted + 180.0) % 360.0 - 180.0),
         "offset_weak_axes": weak,
         "offset_error_along_weak_axes_deg": along,
         "truth_in_weak_intervals": inside,
@@ -225,6 +310,21 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
         r["truth"] == "tumbling" and r["called"] != "tumbling" and r["probability"] >= 0.9
         for r in records
     )
+    checked = [r for r in stabilised if "coverage" in r]
+    coverage = {
+        method: {
+            key: {
+                "axes_covered": int(sum(sum(r["coverage"][method][key]["axes"]) for r in checked)),
+                "axes": 3 * len(checked),
+                "joint_covered": int(sum(r["coverage"][method][key]["joint"] for r in checked)),
+                "objects": len(checked),
+            }
+            for key in map(level_label, LEVELS)
+        }
+        for method in ("laplace", "sampled")
+    }
+    cpu = [r["cpu_s"] for r in checked]
+    sampler_cpu = [r["posterior_cpu_s"] for r in checked]
     return {
         "study": "attitude-mode identification, GEO box-wing, one night, 0.03 mag",
         "seed": seed,
@@ -240,6 +340,13 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
         ),
         "offsets_within_2_deg_or_weak_interval": int(sum(resolved)),
         "tumbling_called_stabilised_at_p_0_9": int(tumbling_called_stabilised),
+        "offset_coverage": coverage,
+        "offset_laplace_ok": int(sum(bool(r["offset_laplace_ok"]) for r in checked)),
+        "stabilised_cpu_s_median": float(np.median(cpu)) if cpu else None,
+        "stabilised_cpu_s_median_without_posterior": float(np.median(np.subtract(cpu, sampler_cpu)))
+        if cpu
+        else None,
+        "posterior_cpu_s_median": float(np.median(sampler_cpu)) if cpu else None,
         "records": records,
         "wall_s": time.perf_counter() - start,
         "machine": machine_info(),

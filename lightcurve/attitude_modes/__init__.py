@@ -40,6 +40,12 @@ a Sun-pointing body whose lit face is perpendicular to it, say) is reported as a
 with that interval (:class:`WeakAxis`), so the offset is a point across such axes and an
 interval along them.
 
+The winning offset (the most probable stabilised profile and shape) is also sampled from
+its posterior by an ensemble MCMC (:mod:`lightcurve.attitude_modes.posterior`): where glints
+curve the ``χ²`` valley the Laplace 1σ understates the spread, and the sampled 68 % and
+95 % intervals and joint regions hold at their stated rate; ``laplace_ok`` says whether the
+two agree.
+
 A stabilised hypothesis must also pass a consistency test: ``χ²`` at most the
 ``consistency_level`` quantile of ``χ²`` with ``n − k`` degrees of freedom. One that fails
 is discarded (a profile that does not reproduce the light curve to within its noise is no
@@ -50,6 +56,7 @@ Modules: :mod:`~lightcurve.attitude_modes.identify` (the entry point),
 :mod:`~lightcurve.attitude_modes.hypotheses` (stabilised and tumbling fits),
 :mod:`~lightcurve.attitude_modes.offsets` (offset fit and its multi-start),
 :mod:`~lightcurve.attitude_modes.weak_axes` (weak axes and their intervals),
+:mod:`~lightcurve.attitude_modes.posterior` (the sampled posterior of the winning offset),
 :mod:`~lightcurve.attitude_modes.evidence` (Laplace evidence, consistency, mode posterior),
 :mod:`~lightcurve.attitude_modes.results` (the outcome types).
 """

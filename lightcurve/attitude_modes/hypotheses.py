@@ -3,6 +3,7 @@ offset, and torque-free tumbling grown from the inversion's states."""
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -33,6 +34,7 @@ from lightcurve.attitude_modes.offsets import (
     posterior_cost,
     shell_restarts,
 )
+from lightcurve.attitude_modes.posterior import sample_offset_posterior
 from lightcurve.attitude_modes.results import TUMBLING, ModeHypothesis
 from lightcurve.attitude_modes.weak_axes import weak_axes
 from lightcurve.measurement import PhotometricModel
@@ -164,8 +166,8 @@ def stabilised(
     else:
         log_prior = offset_log_prior(delta, prior_sigma)
     q = fit.attitudes(delta)
-    q_offset = quaternion_multiply(
-        rotation_vector_to_quaternion(delta), fit.q_ref[0] if profile == "inertial" else identity
+    offset_quaternions = functools.partial(
+        _offset_quaternions, base=fit.q_ref[0] if profile == "inertial" else identity
     )
     covariance = np.linalg.inv(hessian)
     return _weighed(
@@ -176,12 +178,28 @@ def stabilised(
         hessian=hessian,
         n_measurements=n,
         consistency_level=consistency_level,
-        offsets_deg=euler_offsets_deg(q_offset),
+        offsets_deg=euler_offsets_deg(offset_quaternions(delta)),
         offset_sigma_deg=np.rad2deg(np.sqrt(np.clip(np.diag(covariance), 0, None))),
         quaternion=q[-1],
         omega_rad_s=body_rates(model.times, q)[-1],
         weak_axes=weak,
+        posterior_sampler=functools.partial(
+            sample_offset_posterior,
+            fit,
+            solution,
+            covariance,
+            prior_sigma=prior_sigma,
+            offset_quaternions=offset_quaternions,
+        ),
     )
+
+
+def _offset_quaternions(delta: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """Offset quaternions ``exp(δ) ⊗ base`` of small-angle offsets ``delta (..., 3)`` (rad):
+    from the profile frame (``base`` the identity), or for ``inertial`` of the attitude
+    from the inertial axes (``base`` the attitude ``δ`` is taken about)."""
+    dq = rotation_vector_to_quaternion(np.asarray(delta, float))
+    return quaternion_multiply(dq, np.broadcast_to(base, dq.shape))
 
 
 def tumbling(

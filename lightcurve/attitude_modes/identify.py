@@ -69,12 +69,15 @@ def identify_attitude_mode(
         Geocentric object position and velocity (any consistent units): without them the
         nadir hypotheses are left out (noted).
     seed : int
+        Seeds the inertial and offset scans and, on a stream of its own, the sampler of the
+        winning offset's posterior.
 
     Returns
     -------
     ModeIdentification
     """
-    rng = np.random.default_rng(seed)
+    seeds = np.random.SeedSequence(seed)
+    rng = np.random.default_rng(seeds)
     sigma = math.radians(offset_sigma_deg)
     notes = []
     labels = list(MODE_HYPOTHESES)
@@ -121,6 +124,9 @@ def identify_attitude_mode(
     probabilities = mode_probabilities(hypotheses, labels, model.n_shapes)
     mode = max(probabilities, key=probabilities.get)
     best = max((h for h in hypotheses if h.mode == mode), key=lambda h: h.probability)
+    if best.posterior_sampler is not None:
+        # The sampled offset posterior of the winning profile and shape (its own stream).
+        best.posterior = best.posterior_sampler(seed=seeds.spawn(1)[0])
     return ModeIdentification(
         mode=mode,
         probability=probabilities[mode],

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from lightcurve.attitude_modes.posterior import OffsetPosterior
 
 #: Label of the torque-free hypothesis.
 TUMBLING = "tumbling"
@@ -73,6 +76,13 @@ class ModeHypothesis:
         Attitude at the last epoch (inertial → body).
     omega_rad_s : (3,) numpy.ndarray
         Body rates at the last epoch (rad/s).
+    posterior : OffsetPosterior or None
+        Sampled posterior of the offset (set for the most probable stabilised hypothesis
+        by :func:`~lightcurve.attitude_modes.identify_attitude_mode`; None otherwise).
+    posterior_sampler : callable or None
+        ``sampler(seed=…) → OffsetPosterior``: samples this hypothesis' offset posterior
+        (:func:`~lightcurve.attitude_modes.posterior.sample_offset_posterior` on its fit;
+        None for tumbling).
     """
 
     mode: str
@@ -87,6 +97,10 @@ class ModeHypothesis:
     omega_rad_s: np.ndarray
     weak_axes: list[WeakAxis] = field(default_factory=list)
     probability: float = 0.0
+    posterior: OffsetPosterior | None = None
+    posterior_sampler: Callable[..., OffsetPosterior] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     def to_dict(self) -> dict[str, Any]:
         def listed(v: np.ndarray | None) -> list[float] | None:
@@ -141,11 +155,14 @@ class ModeIdentification:
 
     def summary(self) -> dict[str, Any]:
         """The summary keys ``attitude_mode``, ``attitude_mode_probability``,
-        ``attitude_offsets_deg``, ``attitude_offset_sigma_deg``, ``attitude_offset_weak_axes``
-        and the details."""
+        ``attitude_offsets_deg``, ``attitude_offset_sigma_deg``, ``attitude_offset_weak_axes``,
+        the sampled posterior's ``attitude_offset_intervals_deg``,
+        ``attitude_offset_region_rise``, ``attitude_offset_laplace_ok`` and
+        ``attitude_offset_posterior`` (None for tumbling), and the details."""
         stabilised = self.mode != TUMBLING
         offsets = self.best.offsets_deg if stabilised else None
         sigma = self.best.offset_sigma_deg if stabilised else None
+        posterior = self.best.posterior if stabilised else None
         return {
             "attitude_mode": self.mode,
             "attitude_mode_probability": float(self.probability),
@@ -154,6 +171,14 @@ class ModeIdentification:
             "attitude_offset_weak_axes": [w.to_dict() for w in self.best.weak_axes]
             if stabilised
             else [],
+            "attitude_offset_intervals_deg": None
+            if posterior is None
+            else {k: v.tolist() for k, v in posterior.intervals_deg.items()},
+            "attitude_offset_region_rise": None
+            if posterior is None
+            else {k: float(v) for k, v in posterior.region_rise.items()},
+            "attitude_offset_laplace_ok": None if posterior is None else posterior.laplace_ok,
+            "attitude_offset_posterior": None if posterior is None else posterior.to_dict(),
             "attitude_mode_shape": self.best.shape,
             "attitude_mode_probabilities": {k: float(v) for k, v in self.probabilities.items()},
             "attitude_hypotheses": [h.to_dict() for h in self.hypotheses],

@@ -207,6 +207,10 @@ def test_mode_identification_tells_stabilised_from_tumbling(night):
     assert len(keys["attitude_offset_sigma_deg"]) == 3
     for weak in keys["attitude_offset_weak_axes"]:  # each interval holds the fitted point
         assert weak["sigma_deg"] > 1.0 and weak["interval_deg"][0] <= 0 <= weak["interval_deg"][1]
+    # The sampled posterior's 95 % intervals hold the true offset.
+    bounds = np.asarray(keys["attitude_offset_intervals_deg"]["95"])
+    assert np.all((bounds[:, 0] <= offset) & (offset <= bounds[:, 1])), bounds
+    assert keys["attitude_offset_posterior"]["samples"] >= 32 * 400
     assert spinning.mode == TUMBLING and spinning.probability >= 0.9
     summary = spinning.summary()
     assert summary["attitude_mode"] == TUMBLING and summary["attitude_offsets_deg"] is None
