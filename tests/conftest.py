@@ -35,19 +35,18 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 # order of the tests depends on these figures: a stale or missing entry makes the run less
 # balanced, never wrong.
 LONG_RUNNING_S: dict[str, float] = {
-    "tests/notebooks/test_notebooks.py": 167.0,
-    "tests/lightcurve/test_invert_batch.py": 100.0,
-    "tests/lightcurve/test_cli_help.py": 78.0,
-    "tests/lightcurve/test_kernels.py": 64.0,
-    "tests/lightcurve/test_glint.py": 50.0,
-    "tests/lightcurve/test_inversion.py": 45.0,
-    "tests/lightcurve/test_convex.py": 33.0,
-    "tests/lightcurve/test_batch.py": 22.0,
+    "tests/notebooks/test_notebooks.py": 154.0,
+    "tests/lightcurve/test_invert_batch.py": 58.0,
+    "tests/lightcurve/test_glint.py": 56.0,
+    "tests/lightcurve/test_kernels.py": 55.0,
+    "tests/lightcurve/test_inversion.py": 46.0,
+    "tests/lightcurve/test_cli_help.py": 30.0,
+    "tests/lightcurve/test_convex.py": 27.0,
+    "tests/lightcurve/test_batch.py": 17.0,
     "tests/lightcurve/test_cli_shapes.py": 15.0,
-    "tests/filters/navigation/test_relnav.py": 11.0,
-    "tests/lightcurve/test_profiles.py": 11.0,
+    "tests/filters/navigation/test_monocular.py": 12.0,
     "tests/filters/navigation/test_lander.py": 11.0,
-    "tests/filters/navigation/test_monocular.py": 11.0,
+    "tests/filters/navigation/test_relnav.py": 11.0,
 }
 
 
