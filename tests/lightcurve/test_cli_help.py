@@ -7,6 +7,8 @@ import io
 import json
 import math
 
+import matplotlib
+import matplotlib.image
 import numpy as np
 import pytest
 
@@ -210,14 +212,12 @@ def test_quiet_silences_status_lines(tmp_path, capsys):
 
 
 def test_plot_draws_the_result(inversion, tmp_path):
-    from matplotlib.image import imread
-
     result, _ = inversion
     assert main(["plot", str(result), "--out", str(tmp_path)]) == 0
     for name in ("light_curve.png", "states.png"):
         png = tmp_path / name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-        image = imread(png)
+        image = matplotlib.image.imread(png)
         assert image.shape[0] > 200 and image.shape[1] > 200
         assert float(np.std(image[..., :3])) > 0.02  # not a blank canvas
 

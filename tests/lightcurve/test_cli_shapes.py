@@ -6,6 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
+from matplotlib.image import imread
 
 import brdf
 from lightcurve.cli import main
@@ -57,8 +58,6 @@ def _no_library_env(monkeypatch):
 
 
 def test_round_trip_add_list_show_render_remove(tmp_path, capsys, mesh_file):
-    from matplotlib.image import imread
-
     library = tmp_path / "lib"
     code, out, err = _run(
         capsys,
