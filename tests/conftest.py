@@ -106,13 +106,20 @@ _NOT_IMPORTED = {"tests", "test", "testing", "__pycache__"}
 
 
 def _stale_sources(packages: tuple[str, ...]) -> list[str]:
-    """Source files of ``packages`` whose cached bytecode is missing or older than the source."""
+    """Source files of ``packages`` whose cached bytecode is missing or older than the source.
+
+    Folders where Python could not write the bytecode either (a read-only installation) are
+    skipped.
+    """
     stale = []
     for name in packages:
         spec = importlib.util.find_spec(name)
         for root in (spec.submodule_search_locations or []) if spec else []:
             for folder, subfolders, files in os.walk(root):
                 subfolders[:] = [d for d in subfolders if d not in _NOT_IMPORTED]
+                cache = os.path.join(folder, "__pycache__")
+                if not os.access(cache if os.path.isdir(cache) else folder, os.W_OK):
+                    continue
                 for file in files:
                     if not file.endswith(".py"):
                         continue
