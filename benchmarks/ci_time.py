@@ -6,13 +6,16 @@ cores. Loaded as a plugin, this module appends one JSON line per test to the fil
 ``CI_TIME_LOG``: its node id, the xdist worker, the wall time and the CPU time of the test
 process and of the child processes it waited for (subprocesses, notebook kernels; the
 set-up of fixtures counts with the first test that uses them, numba's compilation with the
-first test that calls a kernel)::
+first test that calls a kernel). Each record also lists the numba kernels the test process
+compiled (``numba_compiles``: the compiled function, its signature and the CPU seconds of the
+compilation; kernels loaded from numba's on-disk cache are not compiled and not listed)::
 
     CI_TIME_LOG=/tmp/tests.jsonl python -m pytest -n 2 --dist worksteal -p benchmarks.ci_time
 
 Run as a script, it summarises one or two such logs (a baseline and a new run) as JSON: the
-test count, summed CPU and wall time, per-worker totals, the slowest tests and, for two logs,
-the per-test ratios on the tests both ran::
+test count, summed CPU and wall time, per-worker totals, the slowest tests, numba's
+compilations (per kernel, and those compiled by more than one worker) and, for two logs, the
+per-test ratios on the tests both ran::
 
     python -m benchmarks.ci_time /tmp/after.jsonl --baseline /tmp/before.jsonl --top 20
 """
@@ -33,6 +36,61 @@ import pytest
 from benchmarks._machine import machine_info
 
 LOG_VARIABLE = "CI_TIME_LOG"
+
+
+class _NumbaCompiles:
+    """Numba's ``numba:compile`` events of this process (cache misses only), outermost ones.
+
+    A kernel that calls other jitted functions compiles them inside its own compilation; the
+    time is counted once, for the outermost kernel, and the inner ones are named with it.
+    """
+
+    def __init__(self) -> None:
+        self.done: list[dict] = []
+        self._open: list[tuple[str, float, list[str]]] = []
+
+    def on_start(self, event) -> None:
+        function = event.data["dispatcher"].py_func
+        name = f"{function.__module__}.{function.__qualname__}"
+        if self._open:
+            self._open[-1][2].append(name)
+        self._open.append((name, time.process_time(), []))
+
+    def on_end(self, event) -> None:
+        name, start, inner = self._open.pop()
+        if not self._open:
+            signature = ", ".join(map(str, event.data["args"]))
+            self.done.append(
+                {
+                    "kernel": name,
+                    "signature": signature,
+                    "cpu_s": round(time.process_time() - start, 3),
+                    "inner": inner,
+                }
+            )
+
+    def drain(self) -> list[dict]:
+        done, self.done = self.done, []
+        return done
+
+
+_numba_compiles = _NumbaCompiles()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With a log to write, listen to numba's compilations (when numba is installed)."""
+    if not os.environ.get(LOG_VARIABLE):
+        return
+    try:
+        from numba.core import event
+    except ImportError:
+        return
+
+    class Listener(event.Listener):
+        on_start = staticmethod(_numba_compiles.on_start)
+        on_end = staticmethod(_numba_compiles.on_end)
+
+    event.register("numba:compile", Listener())
 
 
 def _cpu_seconds() -> tuple[float, float]:
@@ -58,6 +116,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         "wall_s": time.perf_counter() - start,
         "cpu_s": own_after - own,
         "children_cpu_s": children_after - children,
+        "numba_compiles": _numba_compiles.drain(),
     }
     with open(log, "a") as stream:  # one short line per write: whole lines from every worker
         stream.write(json.dumps(record) + "\n")
@@ -87,6 +146,20 @@ def summary(records: dict[str, dict], top: int) -> dict[str, object]:
         workers[record["worker"]]["tests"] += 1
         workers[record["worker"]]["cpu_s"] += total_cpu(record)
     slowest = sorted(records.values(), key=total_cpu, reverse=True)[:top]
+    kernels: dict[str, dict] = {}
+    for record in records.values():
+        for compiled in record.get("numba_compiles", []):
+            entry = kernels.setdefault(compiled["kernel"], {"cpu_s": 0.0, "compiles": []})
+            entry["cpu_s"] += compiled["cpu_s"]
+            entry["compiles"].append((record["worker"], compiled["signature"]))
+    twice = {
+        name: round(entry["cpu_s"], 2)
+        for name, entry in kernels.items()
+        if any(
+            len({w for w, s in entry["compiles"] if s == signature}) > 1
+            for _, signature in entry["compiles"]
+        )
+    }
     return {
         "tests": len(records),
         "cpu_s": sum(map(total_cpu, records.values())),
@@ -96,6 +169,15 @@ def summary(records: dict[str, dict], top: int) -> dict[str, object]:
             {"test": r["nodeid"], "cpu_s": round(total_cpu(r), 2), "wall_s": round(r["wall_s"], 2)}
             for r in slowest
         ],
+        "numba": {
+            "compiles": sum(len(e["compiles"]) for e in kernels.values()),
+            "cpu_s": round(sum(e["cpu_s"] for e in kernels.values()), 2),
+            "kernels": {
+                name: {"compiles": len(e["compiles"]), "cpu_s": round(e["cpu_s"], 2)}
+                for name, e in sorted(kernels.items(), key=lambda kv: -kv[1]["cpu_s"])
+            },
+            "compiled_by_several_workers": twice,
+        },
     }
 
 

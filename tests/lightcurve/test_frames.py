@@ -6,7 +6,11 @@ import pytest
 from lightcurve.ephemeris import Site, _sun_astropy, site_position, sun_position
 from lightcurve.frames import astropy_offline, frame_rotations, interpolate_at_nodes, rotation_z
 
-u = astropy_offline()
+
+@pytest.fixture(scope="module")
+def u():
+    """``astropy.units`` with IERS downloads off, imported only where a test compares with it."""
+    return astropy_offline()
 
 
 @pytest.fixture(scope="module")
@@ -16,7 +20,7 @@ def epochs() -> np.ndarray:
     return np.sort(np.r_[58000 + rng.uniform(0, 3, 200), 57753 + rng.uniform(0, 2, 100)])
 
 
-def _astropy(frame_from, frame_to, vectors, mjd):
+def _astropy(u, frame_from, frame_to, vectors, mjd):
     from astropy.coordinates import CartesianRepresentation
     from astropy.time import Time
 
@@ -25,7 +29,7 @@ def _astropy(frame_from, frame_to, vectors, mjd):
     return source.transform_to(frame_to(obstime=t)).cartesian.xyz.to_value(u.km).T
 
 
-def test_rotations_match_astropy_to_a_few_picoradians(epochs):
+def test_rotations_match_astropy_to_a_few_picoradians(epochs, u):
     from astropy.coordinates import GCRS, ITRS, TEME
 
     rng = np.random.default_rng(6)
@@ -38,7 +42,7 @@ def test_rotations_match_astropy_to_a_few_picoradians(epochs):
         (rotations.itrs_to_gcrs, (ITRS, GCRS)),
     ):
         ours = np.einsum("nij,nj->ni", matrices, v)
-        assert np.abs(ours - _astropy(*frames, v, epochs)).max() < 1e-11
+        assert np.abs(ours - _astropy(u, *frames, v, epochs)).max() < 1e-11
         np.testing.assert_allclose(
             matrices @ matrices.transpose(0, 2, 1), np.eye(3)[None].repeat(len(v), 0), atol=1e-12
         )
@@ -65,7 +69,7 @@ def test_interpolation_is_exact_for_cubics_and_lines():
     np.testing.assert_allclose(line, np.abs(mjd - 60000.75), atol=1e-9)
 
 
-def test_sun_and_site_positions(epochs):
+def test_sun_and_site_positions(epochs, u):
     from astropy.coordinates import EarthLocation
     from astropy.time import Time
 

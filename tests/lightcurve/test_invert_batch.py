@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from dask.distributed import LocalCluster
 
 from lightcurve import io
 from lightcurve.cli import main
@@ -175,6 +174,8 @@ def test_killed_batch_resumes_without_repeating_work(resumed):
 
 def test_dask_cluster_gives_the_same_summaries(inputs, resumed, tmp_path):
     """The Dask batch equals the local one (the resumed batch: killed, then rerun here)."""
+    from dask.distributed import LocalCluster
+
     local = resumed[0]
     with LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None

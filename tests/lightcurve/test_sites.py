@@ -13,7 +13,12 @@ from lightcurve.topocentric import (
     range_from_height,
 )
 
-u = astropy_offline()
+
+@pytest.fixture(scope="module")
+def u():
+    """``astropy.units`` with IERS downloads off, imported only where a test compares with it."""
+    return astropy_offline()
+
 
 REQUIRED = (
     "Mount Lemmon",
@@ -59,7 +64,7 @@ def test_site_specifications_and_errors():
         get_site("30,10,20000")
 
 
-def test_site_position_matches_astropy_wgs84():
+def test_site_position_matches_astropy_wgs84(u):
     from astropy.coordinates import EarthLocation
 
     site = get_site("Zimmerwald")
@@ -70,7 +75,7 @@ def test_site_position_matches_astropy_wgs84():
     np.testing.assert_allclose(site_itrs(site), expected, atol=1e-9)
 
 
-def test_horizontal_coordinates_match_astropy_altaz():
+def test_horizontal_coordinates_match_astropy_altaz(u):
     """Against astropy's topocentric ITRS → AltAz (geometric, no refraction)."""
     from astropy.coordinates import ITRS, AltAz, CartesianRepresentation, EarthLocation
     from astropy.time import Time
