@@ -38,6 +38,7 @@ import trimesh  # noqa: E402
 
 import brdf  # noqa: E402
 from benchmarks._machine import machine_info  # noqa: E402
+from benchmarks._report import add_sections_argument  # noqa: E402
 from filters.attitude import quaternion_from_matrix  # noqa: E402
 from lightcurve.articulated import ArticulatedRenderer  # noqa: E402
 from lightcurve.ephemeris import CircularOrbit, orbit_geometry  # noqa: E402
@@ -253,13 +254,9 @@ def speed(rows: int, exact_rows: int, repeats: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer epochs and rows")
-    parser.add_argument(
-        "--sections",
-        default="accuracy,speed",
-        help="comma-separated parts to run: accuracy (against the ray-cast reference), speed",
-    )
+    add_sections_argument(parser, ("accuracy", "speed"))
     args = parser.parse_args(argv)
-    sections = set(args.sections.split(","))
+    sections = args.sections
     report: dict = {"machine": machine_info(), "seed": SEED}
     if "accuracy" in sections:
         report["accuracy"] = accuracy(600.0 if args.quick else 120.0, 32 if args.quick else 64)

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._machine import machine_info
+from benchmarks._report import add_sections_argument
 from lightcurve.atomic import atomic_write_json
 from lightcurve.scenarios.relnav import load_relnav_scenario
 from lightcurve.studies.relnav import ApproachScenario, simulate_approach
@@ -73,12 +74,10 @@ def main() -> None:
     parser.add_argument("--duration", type=float, help="override the simulated time (s)")
     parser.add_argument("--rgnss-scenario", type=Path, default=RGNSS_SCENARIO)
     parser.add_argument("--mode-seeds", type=int, default=5, help="paired seeds per RGNSS mode")
-    parser.add_argument(
-        "--sections", default="modes,outliers,sweep,rgnss", help="comma-separated parts to run"
-    )
+    add_sections_argument(parser, ("modes", "outliers", "sweep", "rgnss"))
     parser.add_argument("--out", type=Path, help="also write the JSON here")
     args = parser.parse_args()
-    sections = set(args.sections.split(","))
+    sections = args.sections
     start = time.perf_counter()
     base, _ = load_relnav_scenario(args.scenario)
     rgnss_base, _ = load_relnav_scenario(args.rgnss_scenario)

@@ -30,6 +30,7 @@ import torch  # noqa: E402
 
 import shapes  # noqa: E402
 from benchmarks._machine import machine_info  # noqa: E402
+from benchmarks._report import add_sections_argument  # noqa: E402
 from benchmarks._timing import best_time  # noqa: E402
 from filters.attitude import random_quaternion  # noqa: E402
 from lightcurve.render import Renderer  # noqa: E402
@@ -373,13 +374,9 @@ def table_breakdown(epochs: int, repeats: int) -> list[dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small grids, few directions")
-    parser.add_argument(
-        "--sections",
-        default="build,merge,accuracy,lookup,render,breakdown",
-        help="comma-separated subset of build, merge, accuracy, lookup, render, breakdown",
-    )
+    add_sections_argument(parser, ("build", "merge", "accuracy", "lookup", "render", "breakdown"))
     args = parser.parse_args()
-    sections = set(args.sections.split(","))
+    sections = args.sections
     resolution = 10 if args.quick else DEFAULT_RESOLUTION
     result: dict = {
         "machine": {**machine_info(), "ray_backend": "embree" if has_embree else "trimesh"}
