@@ -199,6 +199,7 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
         _add_verbosity(cmd, suffix="_after")
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
+    parser.command_parsers = sub.choices  # the sub-command parsers by name (their errors)
     return parser
 
 
@@ -312,7 +313,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     command = _invoked_command(argv)
     parser = build_parser(load=[command] if command else [])
-    args = parser.parse_args(argv)
+    args, unrecognized = parser.parse_known_args(argv)
+    if unrecognized:  # reported by the command's parser: its usage and its --help
+        command_parser = parser.command_parsers.get(args.command) if args.command else None
+        (command_parser or parser).error(f"unrecognized arguments: {' '.join(unrecognized)}")
     args.verbose += getattr(args, "verbose_after", 0)
     args.quiet += getattr(args, "quiet_after", 0)
     logging.basicConfig(level=_log_level(args.verbose, args.quiet), format=_LOG_FORMAT)

@@ -141,6 +141,9 @@ def test_quiet_run_prints_the_result(capsys):
         (["propagate", "--duration", "ten"], "lightcurve propagate"),
         (["no-such-command"], "lightcurve"),
         (["shapes", "frobnicate"], "lightcurve shapes"),
+        # an unknown option is reported by the command it follows (its usage, its --help)
+        (["invert", "x.csv", "--method", "ukf", "--out", "r", "--bogus"], "lightcurve invert"),
+        (["--bogus"], "lightcurve"),
     ],
 )
 def test_usage_errors_are_one_line(argv, command, capsys):
