@@ -113,7 +113,7 @@ def _circular(args: argparse.Namespace) -> int:
     name = args.name or "object"
     geometry = orbit_geometry(orbit, site, mjd, name, min_elevation, max_sun)
     io.write(geometry, args.out)
-    print(f"{args.out}: {len(geometry)} epochs of {name}")
+    print(f"{args.out}: {len(geometry)} epochs" + (f" of {args.name}" if args.name else ""))
     return 0
 
 

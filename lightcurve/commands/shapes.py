@@ -208,7 +208,8 @@ def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         )
     mass = f"{model.mass:.6g} kg" if not math.isnan(model.mass) else "not given"
     print(f"  inertia ({model.inertia_source}, mass {mass}), kg m², about the centre of mass")
-    print(f"  centre of mass: {np.array2string(model.center_of_mass, precision=6)} m")
+    centre = np.array2string(model.center_of_mass, precision=6, suppress_small=True)
+    print(f"  centre of mass: {centre} m")
     print(_matrix(model.inertia))
     print(f"  principal moments: {np.array2string(model.principal_moments, precision=6)} kg m²")
     print("  principal axes (columns):")
