@@ -1,7 +1,7 @@
 """Monte Carlo study of attitude-mode identification (stabilised or tumbling). Prints JSON.
 
-    python -m benchmarks.attitude_modes [--objects 20] [--seed 0] [--workers 2] [--cadence 300]
-                                        [--out FILE]
+    python -m benchmarks.attitude_modes [--orbit {geo,leo}] [--objects 20] [--seed 0]
+                                        [--workers 2] [--cadence 300] [--out FILE]
 
 Scenario: a box-wing (library ``box_wing``) in a geostationary slot at a longitude drawn in
 [−130°, −70°], seen from Mount Lemmon for one whole night (epochs every ``--cadence`` s
@@ -14,6 +14,18 @@ second half tumble torque-free from a uniform attitude with rates of uniform dir
 magnitude uniform in [0.1, 5]°/s. Object ``i`` draws everything from
 ``numpy.random.default_rng([seed, i])``. Each light curve is inverted with
 ``invert(method="ukf", modes=True)``.
+
+``--orbit leo`` puts the box-wing on a circular low orbit instead (everything else as
+above): altitude uniform in [500, 1200] km, inclination in [45°, 100°], right ascension of
+the node and argument of latitude (at 00:00 UTC) in [0°, 360°), drawn after the date, seen
+from Mount Lemmon over the same night window; pick a cadence suited to passes (5–10 s).
+The observer's line of sight to the bus sweeps across the sky during each pass, where in
+GEO it stays within ~9° of nadir all night. The orbit is redrawn (same generator, same
+date) until the kept epochs hold at least ``MIN_PASSES`` passes (runs of epochs separated
+by more than ``PASS_GAP_S``) of at least ``MIN_PASS_POINTS`` points each; a rejected draw
+is not a result, and each record counts its rejections (``orbit_rejections``). The
+record then gives the orbit (``orbit``), its passes (``passes``, points per pass) and no
+longitude.
 
 Reported: the mode right at probability ≥ 0.9, the confusion matrix (true → called), the
 offset error of the stabilised objects (angle between the fitted and the true offset
@@ -61,7 +73,7 @@ from lightcurve.attitude_modes import MODE_HYPOTHESES, hypotheses
 from lightcurve.attitude_modes.evidence import ATTITUDE_PRECISION
 from lightcurve.attitude_modes.offsets import ProfileFit, posterior_cost
 from lightcurve.attitude_modes.posterior import LEVELS, level_label
-from lightcurve.ephemeris import CircularOrbit, orbit_geometry
+from lightcurve.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
 from lightcurve.inversion import invert, shape_symmetry
 from lightcurve.measurement import PhotometricModel
 from lightcurve.profiles import euler_offsets_deg, offset_quaternion, profile_attitude
@@ -88,6 +100,17 @@ def _timed(sampler):
     return timed
 
 
+#: LEO draws: passes the kept epochs must hold, points per pass, and the gap (s) that
+#: separates two passes (a low orbit's period is ≥ 94 min, a pass ≤ ~15 min).
+MIN_PASSES = 2
+MIN_PASS_POINTS = 20
+PASS_GAP_S = 600.0
+#: LEO draws tried per object before giving up.
+MAX_ORBIT_DRAWS = 200
+LEO_ALTITUDE_KM = (500.0, 1200.0)
+LEO_INCLINATION_DEG = (45.0, 100.0)
+
+
 def _geometry(rng: np.random.Generator, cadence_s: float):
     day = int(rng.integers(0, 55))
     start = 60324.0 + day  # 2024-01-15 + day
@@ -97,12 +120,59 @@ def _geometry(rng: np.random.Generator, cadence_s: float):
     return orbit_geometry(orbit, get_site("Mount Lemmon"), mjd, "geo-box-wing"), longitude, start
 
 
-def run_object(seed: int, index: int, n_objects: int, cadence_s: float) -> dict:
-    """Simulate and classify object ``index``."""
+def pass_lengths(mjd: np.ndarray, gap_s: float = PASS_GAP_S) -> list[int]:
+    """Points in each pass: runs of epochs ``mjd`` (days) separated by more than ``gap_s``."""
+    breaks = np.flatnonzero(np.diff(mjd) * 86400.0 > gap_s) + 1
+    return [len(run) for run in np.split(np.asarray(mjd), breaks)]
+
+
+def _leo_geometry(rng: np.random.Generator, cadence_s: float):
+    """A low circular orbit seen over one night, redrawn until it gives ``MIN_PASSES``
+    passes of ``MIN_PASS_POINTS`` points (module doc); also the orbit, the points per
+    pass and the number of rejected draws."""
+    day = int(rng.integers(0, 55))
+    start = 60324.0 + day  # 2024-01-15 + day
+    mjd = start + np.arange(0.0, 15 * 3600.0, cadence_s) / 86400.0
+    site = get_site("Mount Lemmon")
+    for rejections in range(MAX_ORBIT_DRAWS):
+        orbit = CircularOrbit(
+            EARTH_RADIUS_KM + float(rng.uniform(*LEO_ALTITUDE_KM)),
+            float(rng.uniform(*LEO_INCLINATION_DEG)),
+            float(rng.uniform(0.0, 360.0)),
+            float(rng.uniform(0.0, 360.0)),
+            start,
+        )
+        try:
+            geometry = orbit_geometry(orbit, site, mjd, "leo-box-wing")
+        except ValueError:  # no epoch sunlit, above 10° and in darkness
+            continue
+        passes = pass_lengths(geometry.mjd)
+        if sum(n >= MIN_PASS_POINTS for n in passes) >= MIN_PASSES:
+            return geometry, orbit, passes, rejections, start
+    raise RuntimeError(f"no low orbit in {MAX_ORBIT_DRAWS} draws gave {MIN_PASSES} passes")
+
+
+def run_object(seed: int, index: int, n_objects: int, cadence_s: float, orbit: str = "geo") -> dict:
+    """Simulate and classify object ``index`` (``orbit`` ``"geo"`` or ``"leo"``)."""
     rng = np.random.default_rng([seed, index])
     shape = get_library().load("box_wing")
-    geometry, longitude, start = _geometry(rng, cadence_s)
-    record: dict = {"index": index, "longitude_deg": longitude, "start_mjd": start}
+    if orbit == "leo":
+        geometry, drawn, passes, rejections, start = _leo_geometry(rng, cadence_s)
+        record: dict = {
+            "index": index,
+            "orbit": {
+                "altitude_km": drawn.radius_km - EARTH_RADIUS_KM,
+                "inclination_deg": drawn.inclination_deg,
+                "raan_deg": drawn.raan_deg,
+                "argument_of_latitude_deg": drawn.argument_of_latitude_deg,
+            },
+            "passes": passes,
+            "orbit_rejections": rejections,
+            "start_mjd": start,
+        }
+    else:
+        geometry, longitude, start = _geometry(rng, cadence_s)
+        record = {"index": index, "longitude_deg": longitude, "start_mjd": start}
     if index < n_objects // 2:
         label = STABILISED[int(rng.integers(len(STABILISED)))]
         profile, yaw = MODE_HYPOTHESES[label]
@@ -278,7 +348,7 @@ def _offset_check(estimated: np.ndarray, truth: np.ndarray, weak: list, group) -
     }
 
 
-def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
+def study(n_objects: int, seed: int, workers: int, cadence_s: float, orbit: str = "geo") -> dict:
     """Run the study and summarise it (see the module docstring)."""
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=workers) as pool:
@@ -289,6 +359,7 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
                 range(n_objects),
                 [n_objects] * n_objects,
                 [cadence_s] * n_objects,
+                [orbit] * n_objects,
             )
         )
     modes = [*STABILISED, "tumbling"]
@@ -325,8 +396,20 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
     }
     cpu = [r["cpu_s"] for r in checked]
     sampler_cpu = [r["posterior_cpu_s"] for r in checked]
+    if orbit == "leo":
+        setting = {
+            "study": "attitude-mode identification, LEO box-wing, one night, 0.03 mag",
+            "orbit": "leo",
+            "min_passes": MIN_PASSES,
+            "min_pass_points": MIN_PASS_POINTS,
+            "pass_gap_s": PASS_GAP_S,
+            "orbit_rejections": int(sum(r["orbit_rejections"] for r in records)),
+            "points_per_object": [sum(r["passes"]) for r in records],
+        }
+    else:
+        setting = {"study": "attitude-mode identification, GEO box-wing, one night, 0.03 mag"}
     return {
-        "study": "attitude-mode identification, GEO box-wing, one night, 0.03 mag",
+        **setting,
         "seed": seed,
         "objects": n_objects,
         "cadence_s": cadence_s,
@@ -355,13 +438,21 @@ def study(n_objects: int, seed: int, workers: int, cadence_s: float) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--orbit",
+        choices=("geo", "leo"),
+        default="geo",
+        help="geo (default): a geostationary slot; leo: a random circular low orbit "
+        f"(500-1200 km, inclination 45-100 deg), redrawn until one night gives {MIN_PASSES} "
+        f"sunlit passes of >= {MIN_PASS_POINTS} points above 10 deg (use --cadence 5-10)",
+    )
     parser.add_argument("--objects", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--cadence", type=float, default=300.0, help="seconds (default 300)")
     parser.add_argument("--out", help="also write the JSON here")
     args = parser.parse_args(argv)
-    report = study(args.objects, args.seed, args.workers, args.cadence)
+    report = study(args.objects, args.seed, args.workers, args.cadence, args.orbit)
     text = json.dumps(json_ready(report), indent=1)
     print(text)
     if args.out:
