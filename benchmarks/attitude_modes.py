@@ -21,11 +21,13 @@ the node and argument of latitude (at 00:00 UTC) in [0°, 360°), drawn after th
 from Mount Lemmon over the same night window; pick a cadence suited to passes (5–10 s).
 The observer's line of sight to the bus sweeps across the sky during each pass, where in
 GEO it stays within ~9° of nadir all night. The orbit is redrawn (same generator, same
-date) until the kept epochs hold at least ``MIN_PASSES`` passes (runs of epochs separated
-by more than ``PASS_GAP_S``) of at least ``MIN_PASS_POINTS`` points each; a rejected draw
-is not a result, and each record counts its rejections (``orbit_rejections``). The
-record then gives the orbit (``orbit``), its passes (``passes``, points per pass) and no
-longitude.
+date) until the kept epochs hold at least two passes (``MIN_PASSES``; a pass is a run of
+kept epochs without a gap over 600 s, ``PASS_GAP_S``) of at least 20 points each
+(``MIN_PASS_POINTS``); epochs with no lit face visible are dropped later by the simulation,
+so a light curve can hold fewer. A rejected draw is not a result: each record counts its
+rejections (``orbit_rejections``) and the summary their total; the record gives the orbit
+(``orbit``: altitude, inclination, node, argument of latitude) and its points per pass
+(``passes``) in place of the longitude, and the summary states the three limits.
 
 Reported: the mode right at probability ≥ 0.9, the confusion matrix (true → called), the
 offset error of the stabilised objects (angle between the fitted and the true offset
