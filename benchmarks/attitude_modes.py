@@ -113,11 +113,15 @@ LEO_ALTITUDE_KM = (500.0, 1200.0)
 LEO_INCLINATION_DEG = (45.0, 100.0)
 
 
+def _night(rng: np.random.Generator, cadence_s: float) -> tuple[float, np.ndarray]:
+    """A date drawn in 2024 January–February (UTC MJD) and its epochs from 00:00 to 15:00."""
+    start = 60324.0 + int(rng.integers(0, 55))  # 2024-01-15 + day
+    return start, start + np.arange(0.0, 15 * 3600.0, cadence_s) / 86400.0
+
+
 def _geometry(rng: np.random.Generator, cadence_s: float):
-    day = int(rng.integers(0, 55))
-    start = 60324.0 + day  # 2024-01-15 + day
+    start, mjd = _night(rng, cadence_s)
     longitude = float(rng.uniform(-130.0, -70.0))
-    mjd = start + np.arange(0.0, 15 * 3600.0, cadence_s) / 86400.0
     orbit = CircularOrbit.geostationary(longitude, mjd[0])
     return orbit_geometry(orbit, get_site("Mount Lemmon"), mjd, "geo-box-wing"), longitude, start
 
@@ -132,9 +136,7 @@ def _leo_geometry(rng: np.random.Generator, cadence_s: float):
     """A low circular orbit seen over one night, redrawn until it gives ``MIN_PASSES``
     passes of ``MIN_PASS_POINTS`` points (module doc); also the orbit, the points per
     pass and the number of rejected draws."""
-    day = int(rng.integers(0, 55))
-    start = 60324.0 + day  # 2024-01-15 + day
-    mjd = start + np.arange(0.0, 15 * 3600.0, cadence_s) / 86400.0
+    start, mjd = _night(rng, cadence_s)
     site = get_site("Mount Lemmon")
     for rejections in range(MAX_ORBIT_DRAWS):
         orbit = CircularOrbit(
