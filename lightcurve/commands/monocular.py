@@ -22,11 +22,7 @@ from pathlib import Path
 from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "monocular"
-
-
 HELP = "attitude, rate and inertia of a tumbling target from images (Deng et al. 2024)"
-
-
 ORDER = 60
 
 

@@ -16,11 +16,7 @@ import argparse
 from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "plan"
-
-
 HELP = "plan landmark images of a small-body landing, Fisher information (Li et al. 2024)"
-
-
 ORDER = 64
 
 

@@ -20,11 +20,7 @@ import numpy as np
 from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "relnav"
-
-
 HELP = "multi-mode relative navigation: IMU + lidar/stereo/relative GNSS, Huber M-estimation"
-
-
 ORDER = 63
 
 

@@ -14,11 +14,7 @@ import argparse
 from lightcurve.commands._args import add_scenario_arguments
 
 NAME = "stereo"
-
-
 HELP = "Monte Carlo of the stereo relative-state and inertia EKF (Feng et al.)"
-
-
 ORDER = 62
 
 

@@ -4,10 +4,11 @@ Modules: :mod:`~lightcurve.convex.sphere` (the fixed Gaussian sphere and harmoni
 :mod:`~lightcurve.convex.data` (light curves as fitted), :mod:`~lightcurve.convex.compiled`
 and :mod:`~lightcurve.convex.kernels` (the batched model and its Jacobian: numpy and compiled
 numba kernels), :mod:`~lightcurve.convex.model` (the same model in torch: autograd, GPU),
-:mod:`~lightcurve.convex.layout` (the parameter vector), :mod:`~lightcurve.convex.optimize`
-(batched Levenberg–Marquardt), :mod:`~lightcurve.convex.fit` (fits from pole starts, their
-results and uncertainties), :mod:`~lightcurve.convex.scan` (period scans, χ² profiles in
-period), :mod:`~lightcurve.convex.minkowski` (the polyhedron from the Gaussian image).
+:mod:`~lightcurve.convex.layout` (the parameter vector and the set-up both models share),
+:mod:`~lightcurve.convex.optimize` (batched Levenberg–Marquardt), :mod:`~lightcurve.convex.fit`
+(fits from pole starts, their results and uncertainties), :mod:`~lightcurve.convex.scan`
+(period scans, χ² profiles in period), :mod:`~lightcurve.convex.minkowski` (the polyhedron
+from the Gaussian image).
 """
 
 from lightcurve.convex.data import Photometry

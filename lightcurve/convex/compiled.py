@@ -18,20 +18,18 @@ rule into the parameters, the per-curve normalisation) is numpy on (B, N) arrays
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from lightcurve.convex import kernels
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.layout import SECONDS_PER_DAY, ParameterLayout
+from lightcurve.convex.layout import SECONDS_PER_DAY, ModelSetup
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import pole_matrix
 
 __all__ = ["CompiledModel"]
 
 
-class CompiledModel:
+class CompiledModel(ModelSetup):
     """Batched model light curves and Jacobians (numpy arrays) for one data set and sphere.
 
     Parameters
@@ -55,9 +53,7 @@ class CompiledModel:
         convexity_weight: float = 0.1,
         dtype: np.dtype | type = np.float64,
     ) -> None:
-        self.data, self.sphere = data, sphere
-        self.layout = ParameterLayout(sphere.n_coefficients)
-        self.epoch_mjd = float(epoch_mjd)
+        self._set_up(data, sphere, epoch_mjd, convexity_weight)
         self.dtype = np.dtype(dtype)
         if self.dtype not in (np.float32, np.float64):
             raise ValueError(f"dtype must be float32 or float64, got {self.dtype}")
@@ -79,11 +75,7 @@ class CompiledModel:
         self._starts = np.r_[0, np.cumsum(counts)[:-1]]
         self._per_curve = 1.0 / counts
         self.relative_rows = np.ascontiguousarray(data.relative[data.curve])
-        self.has_calibrated = bool((~data.relative).any())
         self._buffers: dict[str, np.ndarray] = {}
-        self.regularisation_scale = (
-            convexity_weight * math.sqrt(len(data)) / float(np.median(data.sigma))
-        )
 
     # ------------------------------------------------------------------ pieces
     def areas(self, coefficients: np.ndarray) -> np.ndarray:

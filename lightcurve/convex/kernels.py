@@ -68,14 +68,26 @@ def _turn(matrix, vector, cos, sin):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always", **_OPTIONS)
-def _body_directions(pole, sun, earth, scalars, b, j, t):  # pragma: no cover - compiled
-    """``cos φ``, ``sin φ`` and the body-frame Sun and Earth directions of problem b at
-    epoch j (time t), ``φ = φ0 + ω t``."""
+def _epoch_geometry(task, seconds, sun, earth, poles, scalars, real):  # pragma: no cover
+    """Problem b, epoch j and the body-frame geometry of the flat task index ``b N + j``.
+
+    Returns ``b, j, t, cos φ, sin φ`` (``φ = φ0 + ω t``), the x and y components of the
+    body-frame Sun and Earth directions in float64 (what the rotation columns need), then,
+    in the facet dtype ``real``, the three components of each direction and ``c``.
+    """
+    epochs = seconds.shape[0]
+    b = task // epochs
+    j = task - b * epochs
+    t = seconds[j]
     phi = scalars[b, 0] + scalars[b, 1] * t
     cos, sin = math.cos(phi), math.sin(phi)
-    lx, ly, lz = _turn(pole, sun[j], cos, sin)
-    vx, vy, vz = _turn(pole, earth[j], cos, sin)
-    return cos, sin, lx, ly, lz, vx, vy, vz
+    lx, ly, lz = _turn(poles[b, 0], sun[j], cos, sin)
+    vx, vy, vz = _turn(poles[b, 0], earth[j], cos, sin)
+    # One flat tuple: numba's parfor analysis rejects nested tuples from an inlined call.
+    return (
+        *(b, j, t, cos, sin, lx, ly, vx, vy),
+        *(real(lx), real(ly), real(lz), real(vx), real(vy), real(vz), real(scalars[b, 5])),
+    )
 
 
 @numba.njit(inline="always", **_OPTIONS)
@@ -108,20 +120,14 @@ def brightness(seconds, sun, earth, alpha, normals, areas, poles, scalars, out):
     out : (B, N) float64
         Written.
     """
-    batch, epochs = areas.shape[0], seconds.shape[0]
-    facets = normals.shape[1]
     real = normals.dtype.type
     zero, one, floor = real(0.0), real(1.0), real(COSINE_FLOOR)
-    for task in numba.prange(batch * epochs):
-        b = task // epochs
-        j = task - b * epochs
-        _, _, lx, ly, lz, vx, vy, vz = _body_directions(
-            poles[b, 0], sun, earth, scalars, b, j, seconds[j]
+    for task in numba.prange(out.size):
+        b, j, _, _, _, _, _, _, _, sx, sy, sz, ex, ey, ez, c = _epoch_geometry(
+            task, seconds, sun, earth, poles, scalars, real
         )
-        sx, sy, sz, ex, ey, ez = real(lx), real(ly), real(lz), real(vx), real(vy), real(vz)
-        c = real(scalars[b, 5])
         total = zero
-        for i in range(facets):
+        for i in range(normals.shape[1]):
             mu0 = max(sx * normals[0, i] + sy * normals[1, i] + sz * normals[2, i], zero)
             mu = max(ex * normals[0, i] + ey * normals[1, i] + ez * normals[2, i], zero)
             total += areas[b, i] * (mu0 * mu) * (one / max(mu0 + mu, floor) + c)
@@ -144,24 +150,17 @@ def brightness_and_jacobian(
     columns : (B, N, 8) float64
         Written: ``∂L_bj/∂(λ, β, ω, φ0, a, d, k, c)``.
     """
-    batch, epochs = areas.shape[0], seconds.shape[0]
-    facets = normals.shape[1]
     real = normals.dtype.type
     zero, one, floor = real(0.0), real(1.0), real(COSINE_FLOOR)
-    for task in numba.prange(batch * epochs):
-        b = task // epochs
-        j = task - b * epochs
-        t = seconds[j]
-        cos, sin, lx, ly, lz, vx, vy, vz = _body_directions(
-            poles[b, 0], sun, earth, scalars, b, j, t
+    for task in numba.prange(out.size):
+        b, j, t, cos, sin, lx, ly, vx, vy, sx, sy, sz, ex, ey, ez, c = _epoch_geometry(
+            task, seconds, sun, earth, poles, scalars, real
         )
-        sx, sy, sz, ex, ey, ez = real(lx), real(ly), real(lz), real(vx), real(vy), real(vz)
-        c = real(scalars[b, 5])
         f, decay = _phase(alpha[j], scalars[b, 2], scalars[b, 3], scalars[b, 4])
         total, lambert_total = zero, zero
         gl0, gl1, gl2, gv0, gv1, gv2 = zero, zero, zero, zero, zero, zero
         row = scatter[b, j]
-        for i in range(facets):
+        for i in range(normals.shape[1]):
             nx, ny, nz = normals[0, i], normals[1, i], normals[2, i]
             cos0 = sx * nx + sy * ny + sz * nz
             cos1 = ex * nx + ey * ny + ez * nz

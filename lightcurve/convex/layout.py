@@ -1,10 +1,19 @@
-"""The parameter vector of the convex model, shared by its torch and compiled versions."""
+"""The parameter vector of the convex model and the set-up its torch and compiled versions
+share."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-__all__ = ["PHASE_NAMES", "SECONDS_PER_DAY", "SPIN_NAMES", "ParameterLayout"]
+import numpy as np
+
+if TYPE_CHECKING:
+    from lightcurve.convex.data import Photometry
+    from lightcurve.convex.sphere import GaussianSphere
+
+__all__ = ["PHASE_NAMES", "SECONDS_PER_DAY", "SPIN_NAMES", "ModelSetup", "ParameterLayout"]
 
 SECONDS_PER_DAY = 86400.0
 SPIN_NAMES = ("lambda", "beta", "rate", "phi0")
@@ -50,3 +59,34 @@ class ParameterLayout:
         if name not in names:
             raise KeyError(f"unknown parameter {name!r}; known: {', '.join(names)}")
         return self.n_coefficients + names.index(name)
+
+
+class ModelSetup:
+    """What the compiled and the torch convex models derive alike from their inputs.
+
+    Attributes
+    ----------
+    data : Photometry
+    sphere : GaussianSphere
+    layout : ParameterLayout
+    epoch_mjd : float
+        Reference epoch t0 of the rotation angle (UTC MJD).
+    has_calibrated : bool
+        Whether any light curve is calibrated (it then has a fitted scale ``s``).
+    regularisation_scale : float
+        ``w √N / σ̃`` (``w`` the convexity weight, N points, σ̃ their median error): the
+        convexity residuals are this times ``Σ A_i n_i / Σ A_i`` (Kaasalainen & Torppa 2001,
+        sec. 3.3).
+    """
+
+    def _set_up(
+        self, data: Photometry, sphere: GaussianSphere, epoch_mjd: float, convexity_weight: float
+    ) -> None:
+        """Set the attributes above (the models' constructors call it first)."""
+        self.data, self.sphere = data, sphere
+        self.layout = ParameterLayout(sphere.n_coefficients)
+        self.epoch_mjd = float(epoch_mjd)
+        self.has_calibrated = bool((~data.relative).any())
+        self.regularisation_scale = (
+            convexity_weight * math.sqrt(len(data)) / float(np.median(data.sigma))
+        )

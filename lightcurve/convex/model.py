@@ -23,8 +23,6 @@ Kaasalainen & Torppa 2001, sec. 3.3; σ̃ the median data error) as extra residu
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import torch
 from torch.autograd import forward_ad
@@ -33,7 +31,7 @@ from brdf import phase_function
 from brdf._geometry import COSINE_FLOOR
 from filters.attitude import attitude_matrix, axis_angle_to_quaternion, cross_matrix, rotate
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.layout import SECONDS_PER_DAY, ParameterLayout
+from lightcurve.convex.layout import SECONDS_PER_DAY, ModelSetup, ParameterLayout
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import pole_quaternion
 
@@ -43,7 +41,7 @@ __all__ = ["ConvexModel", "ParameterLayout"]
 _BLOCK = 131_072
 
 
-class ConvexModel:
+class ConvexModel(ModelSetup):
     """Batched model light curves and Jacobians for one data set and Gaussian sphere.
 
     Parameters
@@ -74,10 +72,8 @@ class ConvexModel:
         device: str | torch.device | None = None,
         compile: bool = False,
     ) -> None:
-        self.data, self.sphere = data, sphere
+        self._set_up(data, sphere, epoch_mjd, convexity_weight)
         self._block_sums = torch.compile(_block_sums, dynamic=True) if compile else _block_sums
-        self.layout = ParameterLayout(sphere.n_coefficients)
-        self.epoch_mjd = float(epoch_mjd)
         self.device = torch.device(
             device if device is not None else ("cuda" if torch.cuda.is_available() else "cpu")
         )
@@ -105,10 +101,6 @@ class ConvexModel:
         averaging[data.curve, np.arange(len(data))] = 1.0 / counts[data.curve]
         self.averaging = tensor(averaging)
         self.relative_rows = tensor(data.relative[data.curve].astype(float))
-        self.has_calibrated = bool((~data.relative).any())
-        self.regularisation_scale = (
-            convexity_weight * math.sqrt(len(data)) / float(np.median(data.sigma))
-        )
 
     # ------------------------------------------------------------------ pieces
     def areas(self, coefficients: torch.Tensor) -> torch.Tensor:

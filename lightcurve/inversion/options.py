@@ -310,16 +310,17 @@ def validate_request(
     n_shapes: int | None = None,
     q0: Any = None,
     omega0: Any = None,
-    attitude_sigma_deg: float = 20.0,
-    omega_sigma: float = math.radians(0.2),
-    omega_max: float = math.radians(5.0),
-    particles: int = 2000,
+    attitude_sigma_deg: float | None = None,
+    omega_sigma: float | None = None,
+    omega_max: float | None = None,
+    particles: int | None = None,
     **option_overrides: Any,
 ) -> InversionOptions:
     """Check an inversion request before any data is read; return its options.
 
     Parameters are those of :func:`lightcurve.inversion.invert` (``n_shapes`` the number of
-    candidate shapes, None when not yet known).
+    candidate shapes, None when not yet known); a 1σ, rate bound or particle count left None
+    stands for :func:`~lightcurve.inversion.invert`'s default and is not checked.
 
     Returns
     -------
@@ -359,7 +360,7 @@ def validate_request(
         ("omega_max", omega_max),
         ("particles", particles),
     ):
-        if not (math.isfinite(value) and value > 0):
+        if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be positive and finite, got {value}")
     for name, value, size in (("q0", q0, 4), ("omega0", omega0, 3)):
         if value is None:

@@ -31,9 +31,9 @@ from filters.global_search import (
 from filters.global_search.refinement import _with_twins
 from filters.global_search.selection import _best_distinct, _replenish
 from filters.symmetry import SymmetryGroup
+from tests.filters._directions import VECTORS
 
 INERTIA = np.diag([1.0, 1.7, 2.2])
-VECTORS = torch.tensor([[0.48, -0.6, 0.64], [0.0, 0.6, 0.8]], dtype=torch.float64)
 
 
 def _measure(q, epochs, shape):

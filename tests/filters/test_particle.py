@@ -18,9 +18,9 @@ from filters.attitude import (
 )
 from filters.particle import AttitudeParticleFilter, systematic_resample
 from filters.symmetry import SymmetryGroup
+from tests.filters._directions import VECTORS
 
 INERTIA = np.diag([1.0, 1.5, 2.0])
-VECTORS = torch.tensor([[0.48, -0.6, 0.64], [0.0, 0.6, 0.8]], dtype=torch.float64)
 
 
 def _sensor(k: int):

@@ -66,79 +66,81 @@ def test_mjd_column_and_geometry_only_files(tmp_path):
     assert not obs.has_magnitudes
 
 
+SUN, OBSERVER = "1.4e8,2.0e7,1.0e6", "3.0e4,1.0e4,5.0e3"
+
+
+def _vectors(old: str, new: str) -> list[str]:
+    """One otherwise good row with the vector ``old`` (:data:`SUN` or :data:`OBSERVER`)
+    replaced by ``new`` (km)."""
+    return [ROW.format(s=0, mag=10).replace(old, new)]
+
+
 @pytest.mark.parametrize(
-    ("rows", "columns", "pattern"),
+    ("columns", "pattern"),
     [
         (
-            good_rows(),
             COLUMNS.replace("mag_err", "mag_er"),
             r"missing required column 'mag_err' \(found 'mag_er': misspelled\?\)",
         ),
-        (good_rows(), COLUMNS.replace("epoch", "time"), "no time column"),
+        (COLUMNS.replace("epoch", "time"), "no time column"),
+    ],
+)
+def test_malformed_header_messages_name_the_column(tmp_path, columns, pattern):
+    path = write_csv(tmp_path, good_rows(), columns=columns)
+    with pytest.raises(ObservationError, match=pattern) as info:
+        io.read(path)
+    assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("rows", "pattern"),
+    [
         (
             [*good_rows(2), ROW.format(s=2, mag="bright")],
-            COLUMNS,
             r"row 3, column 'mag': non-numeric value 'bright'",
         ),
-        (
-            [*good_rows(2), ROW.format(s=2, mag="nan")],
-            COLUMNS,
-            r"row 3, column 'mag': value is NaN",
-        ),
-        (
-            [*good_rows(2), ROW.format(s=2, mag="inf")],
-            COLUMNS,
-            r"row 3, column 'mag': .*not finite",
-        ),
+        ([*good_rows(2), ROW.format(s=2, mag="nan")], r"row 3, column 'mag': value is NaN"),
+        ([*good_rows(2), ROW.format(s=2, mag="inf")], r"row 3, column 'mag': .*not finite"),
         (
             [*good_rows(3), ROW.format(s=3, mag=10).replace(",0.05,", ",0,")],
-            COLUMNS,
             r"row 4, column 'mag_err': mag_err must be > 0",
         ),
         (
             [ROW.format(s=1, mag=10), ROW.format(s=0, mag=10)],
-            COLUMNS,
             r"row 2, column 'epoch': epochs are not in increasing order",
         ),
         (
             [ROW.format(s=1, mag=10), ROW.format(s=1, mag=11)],
-            COLUMNS,
             r"row 2, column 'epoch': duplicate epoch",
         ),
         (
-            [ROW.format(s=0, mag=10).replace("3.0e4,1.0e4,5.0e3", "0,0,0")],
-            COLUMNS,
+            _vectors(OBSERVER, "0,0,0"),
             r"row 1, column 'obs_x': object->observer vector has zero length",
         ),
         (
-            [ROW.format(s=0, mag=10).replace("3.0e4,1.0e4,5.0e3", "3.0,1.0,0.5")],
-            COLUMNS,
+            _vectors(OBSERVER, "3.0,1.0,0.5"),
             r"row 1, column 'obs_x': object->observer range 3.202 km is below .*AU given",
         ),
         (
-            [ROW.format(s=0, mag=10).replace("3.0e4,1.0e4,5.0e3", "3.0e10,1.0e10,5.0e9")],
-            COLUMNS,
+            _vectors(OBSERVER, "3.0e10,1.0e10,5.0e9"),
             r"row 1, column 'obs_x': .*metres given\?.*target: asteroid",
         ),
         (
-            [ROW.format(s=0, mag=10).replace("1.4e8,2.0e7,1.0e6", "0.9,0.1,0.0")],
-            COLUMNS,
+            _vectors(SUN, "0.9,0.1,0.0"),
             r"row 1, column 'sun_x': object->Sun range .* below",
         ),
         (
             [*good_rows(3), "2024-01-01T00:00:09Z,10.0,0.05,1.4e8"],
-            COLUMNS,
             r"row 4: has 4 fields, the header has 9 \(truncated",
         ),
         (
             ["not-a-date,10,0.05,1.4e8,2.0e7,1.0e6,3.0e4,1.0e4,5.0e3"],
-            COLUMNS,
             r"row 1, column 'epoch': cannot parse ISO-8601",
         ),
     ],
 )
-def test_malformed_csv_messages_name_row_and_column(tmp_path, rows, columns, pattern):
-    path = write_csv(tmp_path, rows, columns=columns)
+def test_malformed_csv_messages_name_row_and_column(tmp_path, rows, pattern):
+    path = write_csv(tmp_path, rows)
     with pytest.raises(ObservationError, match=pattern) as info:
         io.read(path)
     assert str(path) in str(info.value)
