@@ -45,6 +45,17 @@ def float_vector(*sizes: int) -> Callable[[str], np.ndarray]:
     return parse
 
 
+def positive_int(text: str) -> int:
+    """Argparse type for a count of at least 1 (``--runs``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 #: Largest accepted ``| |q| − 1 |`` of a quaternion typed by hand (rounded components).
 QUATERNION_NORM_TOLERANCE = 0.01
 
@@ -103,7 +114,7 @@ def add_scenario_arguments(
     parser.add_argument("scenario", type=Path, help=scenario_help)
     add_output_folder(parser)
     if runs is not None:
-        parser.add_argument("--runs", type=int, default=runs, help="Monte Carlo runs")
+        parser.add_argument("--runs", type=positive_int, default=runs, help="Monte Carlo runs")
     if seed is not None:
         parser.add_argument("--seed", type=int, default=seed, help=seed_help)
 

@@ -57,8 +57,6 @@ def run(args: argparse.Namespace) -> int:
         write_figures,
     )
 
-    if args.runs < 1:
-        raise ScenarioError(f"--runs must be >= 1, got {args.runs}")
     scenario = load_monocular_scenario(args.scenario)
     external = None
     if args.measurements is not None:

@@ -32,8 +32,6 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve.scenarios.stereo import load_stereo_scenario
     from lightcurve.studies.stereo import run_monte_carlo
 
-    if args.runs < 1:
-        raise ValueError(f"--runs must be at least 1, got {args.runs}")
     scenario = load_stereo_scenario(args.scenario)
     args.out.mkdir(parents=True, exist_ok=True)
     steps = round(scenario.duration / scenario.step)

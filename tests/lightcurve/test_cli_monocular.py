@@ -129,6 +129,18 @@ def test_bad_scenarios_name_the_field(tmp_path, capsys, old, new, message):
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
+@pytest.mark.parametrize("runs", ["0", "-3", "two"])
+def test_bad_run_count_is_caught_before_the_scenario_is_read(tmp_path, capsys, runs):
+    """A run count below 1 (or not a number) stops at parsing, one line, nothing written."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(
+            ["monocular", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "o"), "--runs", runs]
+        )
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "argument --runs:" in err and "nope.toml" not in err
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [

@@ -121,5 +121,7 @@ def test_scenario_errors_name_the_field(tmp_path, capsys, replacement, message):
 def test_missing_file_and_bad_runs(tmp_path, capsys):
     assert main(["plan", str(tmp_path / "none.toml"), "--out", str(tmp_path)]) == 2
     assert "none.toml" in capsys.readouterr().err
-    assert main(["plan", str(EROS), "--out", str(tmp_path), "--runs", "0"]) == 2
-    assert "--runs must be >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["plan", str(EROS), "--out", str(tmp_path / "o"), "--runs", "0"])
+    assert exit_info.value.code == 2 and not (tmp_path / "o").exists()
+    assert "argument --runs: must be at least 1, got 0" in capsys.readouterr().err

@@ -83,5 +83,7 @@ def test_bad_scenarios_name_file_and_field(tmp_path, capsys, edit, message):
 def test_missing_file_and_bad_runs(tmp_path, capsys):
     assert main(["stereo", str(tmp_path / "nope.toml"), "--out", str(tmp_path)]) == 2
     assert "nope.toml" in capsys.readouterr().err
-    assert main(["stereo", str(NOMINAL), "--runs", "0", "--out", str(tmp_path)]) == 2
-    assert "--runs" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["stereo", str(NOMINAL), "--runs", "0", "--out", str(tmp_path / "o")])
+    assert exit_info.value.code == 2 and not (tmp_path / "o").exists()
+    assert "argument --runs: must be at least 1, got 0" in capsys.readouterr().err
