@@ -22,7 +22,7 @@ import numpy as np
 
 from lightcurve.convex import kernels
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.layout import SECONDS_PER_DAY, ModelSetup
+from lightcurve.convex.layout import CONVEXITY_WEIGHT, SECONDS_PER_DAY, ModelSetup
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import pole_matrix
 
@@ -50,7 +50,7 @@ class CompiledModel(ModelSetup):
         data: Photometry,
         sphere: GaussianSphere,
         epoch_mjd: float,
-        convexity_weight: float = 0.1,
+        convexity_weight: float = CONVEXITY_WEIGHT,
         dtype: np.dtype | type = np.float64,
     ) -> None:
         self._set_up(data, sphere, epoch_mjd, convexity_weight)

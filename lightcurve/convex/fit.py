@@ -20,6 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from lightcurve.convex.data import Photometry
+from lightcurve.convex.layout import CONVEXITY_WEIGHT
 from lightcurve.convex.optimize import levenberg_marquardt, scaled_inverse
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import SpinState
@@ -77,7 +78,7 @@ class ConvexSettings:
     degree: int = 6
     order: int = 6
     nrows: int = 8
-    convexity_weight: float = 0.1
+    convexity_weight: float = CONVEXITY_WEIGHT
     phase: tuple[float, float, float] = (0.5, 0.1, -0.5)
     lambert: float = 0.1
     free: tuple[str, ...] = _FREE_DEFAULT

@@ -13,11 +13,20 @@ if TYPE_CHECKING:
     from lightcurve.convex.data import Photometry
     from lightcurve.convex.sphere import GaussianSphere
 
-__all__ = ["PHASE_NAMES", "SECONDS_PER_DAY", "SPIN_NAMES", "ModelSetup", "ParameterLayout"]
+__all__ = [
+    "CONVEXITY_WEIGHT",
+    "PHASE_NAMES",
+    "SECONDS_PER_DAY",
+    "SPIN_NAMES",
+    "ModelSetup",
+    "ParameterLayout",
+]
 
 SECONDS_PER_DAY = 86400.0
 SPIN_NAMES = ("lambda", "beta", "rate", "phi0")
 PHASE_NAMES = ("a", "d", "k")
+#: Default weight ``w`` of the convexity regularisation (DAMIT's ``convexinv``).
+CONVEXITY_WEIGHT = 0.1
 
 
 @dataclass(frozen=True)

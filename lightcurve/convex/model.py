@@ -31,7 +31,12 @@ from brdf import phase_function
 from brdf._geometry import COSINE_FLOOR
 from filters.attitude import attitude_matrix, axis_angle_to_quaternion, cross_matrix, rotate
 from lightcurve.convex.data import Photometry
-from lightcurve.convex.layout import SECONDS_PER_DAY, ModelSetup, ParameterLayout
+from lightcurve.convex.layout import (
+    CONVEXITY_WEIGHT,
+    SECONDS_PER_DAY,
+    ModelSetup,
+    ParameterLayout,
+)
 from lightcurve.convex.sphere import GaussianSphere
 from lightcurve.spin import pole_quaternion
 
@@ -66,7 +71,7 @@ class ConvexModel(ModelSetup):
         data: Photometry,
         sphere: GaussianSphere,
         epoch_mjd: float,
-        convexity_weight: float = 0.1,
+        convexity_weight: float = CONVEXITY_WEIGHT,
         dtype: torch.dtype = torch.float64,
         *,
         device: str | torch.device | None = None,
