@@ -20,14 +20,19 @@ above): altitude uniform in [500, 1200] km, inclination in [45°, 100°], right 
 the node and argument of latitude (at 00:00 UTC) in [0°, 360°), drawn after the date, seen
 from Mount Lemmon over the same night window; pick a cadence suited to passes (5–10 s).
 The observer's line of sight to the bus sweeps across the sky during each pass, where in
-GEO it stays within ~9° of nadir all night. The orbit is redrawn (same generator, same
-date) until the kept epochs hold at least two passes (``MIN_PASSES``; a pass is a run of
-kept epochs without a gap over 600 s, ``PASS_GAP_S``) of at least 20 points each
-(``MIN_PASS_POINTS``); epochs with no lit face visible are dropped later by the simulation,
-so a light curve can hold fewer. A rejected draw is not a result: each record counts its
-rejections (``orbit_rejections``) and the summary their total; the record gives the orbit
-(``orbit``: altitude, inclination, node, argument of latitude) and its points per pass
-(``passes``) in place of the longitude, and the summary states the three limits.
+GEO it stays within ~9° of nadir all night. The orbit and the object on it are redrawn
+(same generator, same date) until the light curve holds at least two passes
+(``MIN_PASSES``; a pass is a run of measurements without a gap over 600 s, ``PASS_GAP_S``)
+of at least 20 measurements each (``MIN_PASS_POINTS``): the measurements that exist, i.e.
+the kept epochs where the simulation sees a lit face of the object's drawn attitude (a
+fixed bus can show the observer no lit face for a whole pass). Each draw takes the orbit,
+then — when its kept epochs alone could hold such passes — the object's mode and state and
+its simulated light curve, so an object whose night is long enough on the first orbit is
+drawn as before. A rejected draw is not a result: each record counts its rejections
+(``orbit_rejections``: orbits whose kept epochs or measurements fall short) and the summary
+their total; the record gives the orbit (``orbit``: altitude, inclination, node, argument
+of latitude) and its measurements per pass (``passes``) in place of the longitude, and the
+summary states the three limits.
 
 Reported: the mode right at probability ≥ 0.9, the confusion matrix (true → called), the
 offset error of the stabilised objects (angle between the fitted and the true offset
@@ -132,52 +137,16 @@ def pass_lengths(mjd: np.ndarray, gap_s: float = PASS_GAP_S) -> list[int]:
     return [len(run) for run in np.split(np.asarray(mjd), breaks)]
 
 
-def _leo_geometry(rng: np.random.Generator, cadence_s: float):
-    """A low circular orbit seen over one night, redrawn until it gives ``MIN_PASSES``
-    passes of ``MIN_PASS_POINTS`` points (module doc); also the orbit, the points per
-    pass and the number of rejected draws."""
-    start, mjd = _night(rng, cadence_s)
-    site = get_site("Mount Lemmon")
-    for rejections in range(MAX_ORBIT_DRAWS):
-        orbit = CircularOrbit(
-            EARTH_RADIUS_KM + float(rng.uniform(*LEO_ALTITUDE_KM)),
-            float(rng.uniform(*LEO_INCLINATION_DEG)),
-            float(rng.uniform(0.0, 360.0)),
-            float(rng.uniform(0.0, 360.0)),
-            start,
-        )
-        try:
-            geometry = orbit_geometry(orbit, site, mjd, "leo-box-wing")
-        except ValueError:  # no epoch sunlit, above 10° and in darkness
-            continue
-        passes = pass_lengths(geometry.mjd)
-        if sum(n >= MIN_PASS_POINTS for n in passes) >= MIN_PASSES:
-            return geometry, orbit, passes, rejections, start
-    raise RuntimeError(f"no low orbit in {MAX_ORBIT_DRAWS} draws gave {MIN_PASSES} passes")
+def _enough_passes(mjd: np.ndarray) -> bool:
+    """Do epochs ``mjd`` (days) hold ``MIN_PASSES`` passes of ``MIN_PASS_POINTS`` points?"""
+    return sum(n >= MIN_PASS_POINTS for n in pass_lengths(mjd)) >= MIN_PASSES
 
 
-def run_object(seed: int, index: int, n_objects: int, cadence_s: float, orbit: str = "geo") -> dict:
-    """Simulate and classify object ``index`` (``orbit`` ``"geo"`` or ``"leo"``)."""
-    rng = np.random.default_rng([seed, index])
-    shape = get_library().load("box_wing")
-    if orbit == "leo":
-        geometry, drawn, passes, rejections, start = _leo_geometry(rng, cadence_s)
-        record: dict = {
-            "index": index,
-            "orbit": {
-                "altitude_km": drawn.radius_km - EARTH_RADIUS_KM,
-                "inclination_deg": drawn.inclination_deg,
-                "raan_deg": drawn.raan_deg,
-                "argument_of_latitude_deg": drawn.argument_of_latitude_deg,
-            },
-            "passes": passes,
-            "orbit_rejections": rejections,
-            "start_mjd": start,
-        }
-    else:
-        geometry, longitude, start = _geometry(rng, cadence_s)
-        record = {"index": index, "longitude_deg": longitude, "start_mjd": start}
-    if index < n_objects // 2:
+def _draw_object(rng: np.random.Generator, geometry, shape, stabilised: bool):
+    """Draw the object's mode and state (module doc) and simulate its light curve over
+    ``geometry``: the observations, the record's truth fields, and the true offset rotation
+    (for ``inertial`` of the whole attitude; None for a tumbler)."""
+    if stabilised:
         label = STABILISED[int(rng.integers(len(STABILISED)))]
         profile, yaw = MODE_HYPOTHESES[label]
         offset = rng.uniform(-10.0, 10.0, 3)
@@ -193,20 +162,73 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float, orbit: s
             offset_deg=offset,
             yaw_steering=yaw,
         )
-        record.update(truth=label, true_offsets_deg=offset.tolist())
         true_offset_q = offset_quaternion(offset)
         if reference is not None:
             true_offset_q = quaternion_multiply(true_offset_q, reference)
-    else:
-        q0 = random_quaternion(1, rng)[0]
-        axis = rng.normal(size=3)
-        rate = math.radians(rng.uniform(0.1, 5.0))
-        omega0 = rate * axis / np.linalg.norm(axis)
-        obs = simulate(
-            geometry, shape, q0=q0, omega0=omega0, noise=GaussianNoise(NOISE_MAG), seed=rng
+        return obs, {"truth": label, "true_offsets_deg": offset.tolist()}, true_offset_q
+    q0 = random_quaternion(1, rng)[0]
+    axis = rng.normal(size=3)
+    rate = math.radians(rng.uniform(0.1, 5.0))
+    omega0 = rate * axis / np.linalg.norm(axis)
+    obs = simulate(geometry, shape, q0=q0, omega0=omega0, noise=GaussianNoise(NOISE_MAG), seed=rng)
+    return obs, {"truth": "tumbling", "rate_deg_s": math.degrees(rate)}, None
+
+
+def _leo_object(rng: np.random.Generator, cadence_s: float, shape, stabilised: bool):
+    """A low circular orbit seen over one night and the object on it, redrawn until its
+    light curve holds ``MIN_PASSES`` passes of ``MIN_PASS_POINTS`` measurements (module
+    doc): its geometry, observations, truth fields and true offset rotation (as
+    :func:`_draw_object`), and the record's orbit, measurements per pass, rejected draws
+    and night."""
+    start, mjd = _night(rng, cadence_s)
+    site = get_site("Mount Lemmon")
+    for rejections in range(MAX_ORBIT_DRAWS):
+        orbit = CircularOrbit(
+            EARTH_RADIUS_KM + float(rng.uniform(*LEO_ALTITUDE_KM)),
+            float(rng.uniform(*LEO_INCLINATION_DEG)),
+            float(rng.uniform(0.0, 360.0)),
+            float(rng.uniform(0.0, 360.0)),
+            start,
         )
-        record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
-        true_offset_q = None
+        try:
+            geometry = orbit_geometry(orbit, site, mjd, "leo-box-wing")
+        except ValueError:  # no epoch sunlit, above 10° and in darkness
+            continue
+        if not _enough_passes(geometry.mjd):
+            continue
+        try:
+            obs, truth, true_offset_q = _draw_object(rng, geometry, shape, stabilised)
+        except ValueError:  # no lit face visible at any epoch
+            continue
+        if _enough_passes(obs.mjd):
+            record = {
+                "orbit": {
+                    "altitude_km": orbit.radius_km - EARTH_RADIUS_KM,
+                    "inclination_deg": orbit.inclination_deg,
+                    "raan_deg": orbit.raan_deg,
+                    "argument_of_latitude_deg": orbit.argument_of_latitude_deg,
+                },
+                "passes": pass_lengths(obs.mjd),
+                "orbit_rejections": rejections,
+                "start_mjd": start,
+            }
+            return geometry, obs, truth, true_offset_q, record
+    raise RuntimeError(f"no low orbit in {MAX_ORBIT_DRAWS} draws gave {MIN_PASSES} passes")
+
+
+def run_object(seed: int, index: int, n_objects: int, cadence_s: float, orbit: str = "geo") -> dict:
+    """Simulate and classify object ``index`` (``orbit`` ``"geo"`` or ``"leo"``)."""
+    rng = np.random.default_rng([seed, index])
+    shape = get_library().load("box_wing")
+    stabilised = index < n_objects // 2
+    if orbit == "leo":
+        geometry, obs, truth, true_offset_q, drawn = _leo_object(rng, cadence_s, shape, stabilised)
+        record: dict = {"index": index, **drawn}
+    else:
+        geometry, longitude, start = _geometry(rng, cadence_s)
+        record = {"index": index, "longitude_deg": longitude, "start_mjd": start}
+        obs, truth, true_offset_q = _draw_object(rng, geometry, shape, stabilised)
+    record.update(truth)
     _POSTERIOR_CPU.clear()
     sampler = _timed(hypotheses.sample_offset_posterior)
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -448,7 +470,8 @@ def main(argv: list[str] | None = None) -> int:
         default="geo",
         help="geo (default): a geostationary slot; leo: a random circular low orbit "
         f"(500-1200 km, inclination 45-100 deg), redrawn until one night gives {MIN_PASSES} "
-        f"sunlit passes of >= {MIN_PASS_POINTS} points above 10 deg (use --cadence 5-10)",
+        f"passes of >= {MIN_PASS_POINTS} measurements (sunlit, above 10 deg, a lit face "
+        "visible; use --cadence 5-10)",
     )
     parser.add_argument("--objects", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
