@@ -58,7 +58,7 @@ _SCREEN_SCALE = 3.0
 #: Screened attitudes descended (one in this many, the lowest by the Cauchy loss), and
 #: the batched Levenberg–Marquardt steps each takes before the valleys are chosen.
 _DESCENT_FRACTION = 16
-_DESCENT_STEPS = 8
+_DESCENT_STEPS = 12
 #: Weak-axis restarts at most.
 _WEAK_RESTARTS = 2
 
