@@ -67,7 +67,17 @@ def run_object(seed: int, index: int, orbit: str) -> dict:
     )
     geometry = None if orbit == "leo" else geo_geometry(rng, 300.0)[0]
     obs = leo_object(rng, 10.0, draw)[1] if geometry is None else draw(geometry)
-    model = PhotometricModel(obs, {"box_wing": shape})
+    record = {"orbit": orbit, "index": index}
+    return record | search_against_truth(
+        PhotometricModel(obs, {"box_wing": shape}), shape, truth, index
+    )
+
+
+def search_against_truth(model: PhotometricModel, shape, truth: np.ndarray, seed: int) -> dict:
+    """Fit the ``inertial`` hypothesis of ``model``'s first shape from uniform attitudes
+    alone (screen seeded by ``seed``) and compare it with a local fit started at the true
+    attitude ``truth`` (module doc): measurements, both ``χ²``, the symmetry-folded error
+    (deg), consistency, miss and near miss, and the search's CPU (s)."""
     symmetry = shape_symmetry(shape)
     cpu0 = time.process_time()
     found = stabilised(
@@ -80,7 +90,7 @@ def run_object(seed: int, index: int, orbit: str) -> dict:
         offset_sigma=math.radians(10.0),
         consistency_level=0.999,
         search_candidates=SEARCH_CANDIDATES,
-        rng=np.random.default_rng(index),
+        rng=np.random.default_rng(seed),
         extra_starts=[],
         weak_sigma=math.radians(1.0),
     )
@@ -93,8 +103,6 @@ def run_object(seed: int, index: int, orbit: str) -> dict:
     )
     worse = found.chi2 > at_truth.chi2 + MISS_CHI2
     return {
-        "orbit": orbit,
-        "index": index,
         "n_measurements": len(model),
         "chi2": found.chi2,
         "truth_local_chi2": at_truth.chi2,

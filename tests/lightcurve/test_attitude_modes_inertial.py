@@ -1,15 +1,10 @@
 """The inertial attitude search of the attitude-mode test on a hard low-orbit night."""
 
-import math
-
 import numpy as np
 import pytest
 
-from filters.attitude import attitude_angle, quaternion_multiply
-from lightcurve.attitude_modes.hypotheses import stabilised
-from lightcurve.attitude_modes.offsets import ProfileFit, local_fit
+from benchmarks.inertial_search import search_against_truth
 from lightcurve.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
-from lightcurve.inversion import shape_symmetry
 from lightcurve.measurement import PhotometricModel
 from lightcurve.simulate import GaussianNoise, simulate
 from lightcurve.sites import get_site
@@ -37,29 +32,8 @@ def test_inertial_search_finds_the_attitude_among_glints(night):
     the fit reaches the truth's valley: within 0.5° of it (symmetry-folded) and with the
     ``χ²`` of a local fit started at the truth."""
     model, shape, truth = night
-    n = len(model)
-    assert n >= 60  # both passes measured
-    symmetry = shape_symmetry(shape)
-    found = stabilised(
-        model,
-        0,
-        "inertial",
-        position=None,
-        velocity=None,
-        symmetry_order=symmetry.order,
-        offset_sigma=math.radians(10.0),
-        consistency_level=0.999,
-        search_candidates=4096,
-        rng=np.random.default_rng(7),
-        extra_starts=[],
-        weak_sigma=math.radians(1.0),
-    )
-    q_ref = np.broadcast_to(np.array([0.0, 0.0, 0.0, 1.0]), (n, 4))
-    at_truth = local_fit(ProfileFit(model, 0, q_ref, truth), np.zeros(3), None)
-    error = min(
-        float(attitude_angle(quaternion_multiply(g, found.quaternion), truth))
-        for g in symmetry.quaternions
-    )
-    assert math.degrees(error) < 0.5
-    assert found.chi2 < at_truth.chi2 + 1.0
-    assert found.consistent
+    found = search_against_truth(model, shape, truth, seed=7)
+    assert found["n_measurements"] >= 60  # both passes measured
+    assert found["error_deg"] < 0.5
+    assert found["chi2"] < found["truth_local_chi2"] + 1.0
+    assert found["consistent"] and not found["miss"]
