@@ -21,13 +21,19 @@ the node and argument of latitude (at 00:00 UTC) in [0°, 360°), drawn after th
 from Mount Lemmon over the same night window; pick a cadence suited to passes (5–10 s).
 The observer's line of sight to the bus sweeps across the sky during each pass, where in
 GEO it stays within ~9° of nadir all night. The orbit is redrawn (same generator, same
-date) until the kept epochs hold at least two passes (``MIN_PASSES``; a pass is a run of
-kept epochs without a gap over 600 s, ``PASS_GAP_S``) of at least 20 points each
-(``MIN_PASS_POINTS``); epochs with no lit face visible are dropped later by the simulation,
-so a light curve can hold fewer. A rejected draw is not a result: each record counts its
-rejections (``orbit_rejections``) and the summary their total; the record gives the orbit
-(``orbit``: altitude, inclination, node, argument of latitude) and its points per pass
-(``passes``) in place of the longitude, and the summary states the three limits.
+date) until the light curve holds at least two passes (``MIN_PASSES``; a pass is a run of
+measurements without a gap over 600 s, ``PASS_GAP_S``) of at least 20 measurements each
+(``MIN_PASS_POINTS``): the measurements that exist, i.e. the kept epochs where the
+simulation sees a lit face (a fixed bus can show the observer no lit face for a whole
+pass). An orbit whose kept epochs alone cannot hold such passes is redrawn before any
+simulation; the object's mode and state are drawn once, when the first orbit that could
+do is simulated, and kept for the orbits drawn after it (so an object whose first such
+orbit gives enough measurements is drawn as when the epochs alone were counted). A
+rejected draw is not a result: each record counts its rejections (``orbit_rejections``:
+orbits whose kept epochs or measurements fall short) and the summary their total; the
+record gives the orbit (``orbit``: altitude, inclination, node, argument of latitude) and
+its measurements per pass (``passes``) in place of the longitude, and the summary states
+the three limits.
 
 Reported: the mode right at probability ≥ 0.9, the confusion matrix (true → called), the
 offset error of the stabilised objects (angle between the fitted and the true offset
@@ -53,6 +59,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from unittest import mock
 
@@ -119,7 +126,9 @@ def _night(rng: np.random.Generator, cadence_s: float) -> tuple[float, np.ndarra
     return start, start + np.arange(0.0, 15 * 3600.0, cadence_s) / 86400.0
 
 
-def _geometry(rng: np.random.Generator, cadence_s: float):
+def geo_geometry(rng: np.random.Generator, cadence_s: float):
+    """A geostationary night (module doc): the geometry, the longitude (deg) and the
+    night's start (UTC MJD)."""
     start, mjd = _night(rng, cadence_s)
     longitude = float(rng.uniform(-130.0, -70.0))
     orbit = CircularOrbit.geostationary(longitude, mjd[0])
@@ -132,10 +141,38 @@ def pass_lengths(mjd: np.ndarray, gap_s: float = PASS_GAP_S) -> list[int]:
     return [len(run) for run in np.split(np.asarray(mjd), breaks)]
 
 
-def _leo_geometry(rng: np.random.Generator, cadence_s: float):
-    """A low circular orbit seen over one night, redrawn until it gives ``MIN_PASSES``
-    passes of ``MIN_PASS_POINTS`` points (module doc); also the orbit, the points per
-    pass and the number of rejected draws."""
+def _enough_passes(mjd: np.ndarray) -> bool:
+    """Do epochs ``mjd`` (days) hold ``MIN_PASSES`` passes of ``MIN_PASS_POINTS`` points?"""
+    return sum(n >= MIN_PASS_POINTS for n in pass_lengths(mjd)) >= MIN_PASSES
+
+
+def _draw_state(rng: np.random.Generator, stabilised: bool) -> tuple[dict, dict, np.ndarray | None]:
+    """Draw the object's mode and state (module doc): the :func:`simulate` arguments, the
+    record's truth fields, and the true offset rotation (for ``inertial`` of the whole
+    attitude; None for a tumbler)."""
+    if stabilised:
+        label = STABILISED[int(rng.integers(len(STABILISED)))]
+        profile, yaw = MODE_HYPOTHESES[label]
+        offset = rng.uniform(-10.0, 10.0, 3)
+        reference = random_quaternion(1, rng)[0] if profile == "inertial" else None
+        true_offset_q = offset_quaternion(offset)
+        if reference is not None:
+            true_offset_q = quaternion_multiply(true_offset_q, reference)
+        arguments = {"q0": reference, "profile": profile, "offset_deg": offset, "yaw_steering": yaw}
+        return arguments, {"truth": label, "true_offsets_deg": offset.tolist()}, true_offset_q
+    q0 = random_quaternion(1, rng)[0]
+    axis = rng.normal(size=3)
+    rate = math.radians(rng.uniform(0.1, 5.0))
+    arguments = {"q0": q0, "omega0": rate * axis / np.linalg.norm(axis)}
+    return arguments, {"truth": "tumbling", "rate_deg_s": math.degrees(rate)}, None
+
+
+def leo_object(rng: np.random.Generator, cadence_s: float, draw: Callable):
+    """A low circular orbit seen over one night and the light curve ``draw(geometry)`` of
+    the object on it (observations; ValueError when no epoch can be measured), the orbit
+    redrawn until that light curve holds ``MIN_PASSES`` passes of ``MIN_PASS_POINTS``
+    measurements (module doc): the geometry, the observations, and the record's orbit,
+    measurements per pass, rejected draws and night."""
     start, mjd = _night(rng, cadence_s)
     site = get_site("Mount Lemmon")
     for rejections in range(MAX_ORBIT_DRAWS):
@@ -150,9 +187,25 @@ def _leo_geometry(rng: np.random.Generator, cadence_s: float):
             geometry = orbit_geometry(orbit, site, mjd, "leo-box-wing")
         except ValueError:  # no epoch sunlit, above 10° and in darkness
             continue
-        passes = pass_lengths(geometry.mjd)
-        if sum(n >= MIN_PASS_POINTS for n in passes) >= MIN_PASSES:
-            return geometry, orbit, passes, rejections, start
+        if not _enough_passes(geometry.mjd):
+            continue
+        try:
+            obs = draw(geometry)
+        except ValueError:  # no lit face visible at any epoch
+            continue
+        if _enough_passes(obs.mjd):
+            record = {
+                "orbit": {
+                    "altitude_km": orbit.radius_km - EARTH_RADIUS_KM,
+                    "inclination_deg": orbit.inclination_deg,
+                    "raan_deg": orbit.raan_deg,
+                    "argument_of_latitude_deg": orbit.argument_of_latitude_deg,
+                },
+                "passes": pass_lengths(obs.mjd),
+                "orbit_rejections": rejections,
+                "start_mjd": start,
+            }
+            return geometry, obs, record
     raise RuntimeError(f"no low orbit in {MAX_ORBIT_DRAWS} draws gave {MIN_PASSES} passes")
 
 
@@ -160,53 +213,25 @@ def run_object(seed: int, index: int, n_objects: int, cadence_s: float, orbit: s
     """Simulate and classify object ``index`` (``orbit`` ``"geo"`` or ``"leo"``)."""
     rng = np.random.default_rng([seed, index])
     shape = get_library().load("box_wing")
+    drawn: list = []
+
+    def draw(geometry):
+        # The object's state is drawn once, when its first night is simulated (in LEO after
+        # the first orbit whose kept epochs could do): a redrawn orbit keeps the object.
+        if not drawn:
+            drawn.extend(_draw_state(rng, index < n_objects // 2))
+        noise = GaussianNoise(NOISE_MAG)
+        return simulate(geometry, shape, noise=noise, seed=rng, **drawn[0])
+
     if orbit == "leo":
-        geometry, drawn, passes, rejections, start = _leo_geometry(rng, cadence_s)
-        record: dict = {
-            "index": index,
-            "orbit": {
-                "altitude_km": drawn.radius_km - EARTH_RADIUS_KM,
-                "inclination_deg": drawn.inclination_deg,
-                "raan_deg": drawn.raan_deg,
-                "argument_of_latitude_deg": drawn.argument_of_latitude_deg,
-            },
-            "passes": passes,
-            "orbit_rejections": rejections,
-            "start_mjd": start,
-        }
+        geometry, obs, record = leo_object(rng, cadence_s, draw)
+        record = {"index": index, **record}
     else:
-        geometry, longitude, start = _geometry(rng, cadence_s)
+        geometry, longitude, start = geo_geometry(rng, cadence_s)
         record = {"index": index, "longitude_deg": longitude, "start_mjd": start}
-    if index < n_objects // 2:
-        label = STABILISED[int(rng.integers(len(STABILISED)))]
-        profile, yaw = MODE_HYPOTHESES[label]
-        offset = rng.uniform(-10.0, 10.0, 3)
-        reference = random_quaternion(1, rng)[0] if profile == "inertial" else None
-        obs = simulate(
-            geometry,
-            shape,
-            q0=reference,
-            omega0=None,
-            noise=GaussianNoise(NOISE_MAG),
-            seed=rng,
-            profile=profile,
-            offset_deg=offset,
-            yaw_steering=yaw,
-        )
-        record.update(truth=label, true_offsets_deg=offset.tolist())
-        true_offset_q = offset_quaternion(offset)
-        if reference is not None:
-            true_offset_q = quaternion_multiply(true_offset_q, reference)
-    else:
-        q0 = random_quaternion(1, rng)[0]
-        axis = rng.normal(size=3)
-        rate = math.radians(rng.uniform(0.1, 5.0))
-        omega0 = rate * axis / np.linalg.norm(axis)
-        obs = simulate(
-            geometry, shape, q0=q0, omega0=omega0, noise=GaussianNoise(NOISE_MAG), seed=rng
-        )
-        record.update(truth="tumbling", rate_deg_s=math.degrees(rate))
-        true_offset_q = None
+        obs = draw(geometry)
+    _, truth, true_offset_q = drawn
+    record.update(truth)
     _POSTERIOR_CPU.clear()
     sampler = _timed(hypotheses.sample_offset_posterior)
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -448,7 +473,8 @@ def main(argv: list[str] | None = None) -> int:
         default="geo",
         help="geo (default): a geostationary slot; leo: a random circular low orbit "
         f"(500-1200 km, inclination 45-100 deg), redrawn until one night gives {MIN_PASSES} "
-        f"sunlit passes of >= {MIN_PASS_POINTS} points above 10 deg (use --cadence 5-10)",
+        f"passes of >= {MIN_PASS_POINTS} measurements (sunlit, above 10 deg, a lit face "
+        "visible; use --cadence 5-10)",
     )
     parser.add_argument("--objects", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)

@@ -29,6 +29,7 @@ from lightcurve.attitude_modes.evidence import (
 from lightcurve.attitude_modes.offsets import (
     OffsetFit,
     ProfileFit,
+    descend_attitudes,
     distinct_lowest,
     local_fit,
     posterior_cost,
@@ -50,8 +51,14 @@ MODE_HYPOTHESES = {
 #: Distinct valleys of the coarse scan refined by the local step: offsets, inertial attitudes.
 _OFFSET_VALLEYS = 4
 _ATTITUDE_VALLEYS = 6
-#: Epochs (at most) on which uniform inertial attitudes are screened.
+#: Epochs (at most) on which uniform inertial attitudes are screened and descended.
 _SCREEN_EPOCHS = 60
+#: Scale, in units of each measurement's σ, of the Cauchy loss that ranks the screen.
+_SCREEN_SCALE = 3.0
+#: Screened attitudes descended (one in this many, the lowest by the Cauchy loss), and
+#: the batched Levenberg–Marquardt steps each takes before the valleys are chosen.
+_DESCENT_FRACTION = 16
+_DESCENT_STEPS = 12
 #: Weak-axis restarts at most.
 _WEAK_RESTARTS = 2
 
@@ -74,21 +81,36 @@ def _attitude_scan(
     q_ref: np.ndarray,
     candidates: np.ndarray,
 ) -> tuple[ProfileFit, OffsetFit, float]:
-    """Best local fit of an inertial attitude from the distinct valleys among
-    ``candidates`` screened on a subset of epochs; and the screen's spacing (rad)."""
+    """Best local fit of an inertial attitude started from ``candidates``; and the
+    screen's spacing (rad).
+
+    The glints of flat panels make ``χ²`` sharp on the scale of a degree, while its
+    valleys draw a local fit in from 15–20°: an attitude of the screen a few degrees from
+    the truth can mistime a glint by many magnitudes and rank below broad wrong attitudes
+    that match the mean brightness. So the screen (on a subset of epochs) ranks by the
+    Cauchy loss ``Σ ln(1 + (r/c)²)``, ``r`` the whitened residuals and ``c`` =
+    :data:`_SCREEN_SCALE` (Holland & Welsch 1977, "Robust regression using iteratively
+    reweighted least-squares"), which a few mistimed glints cannot dominate; the lowest
+    ``1/``:data:`_DESCENT_FRACTION` of the candidates then go :data:`_DESCENT_STEPS`
+    batched Levenberg–Marquardt steps downhill (:func:`descend_attitudes`) on the same
+    epochs, and the local fit on every epoch starts from the distinct valleys they reach
+    — a clustering multistart (Rinnooy Kan & Timmer 1987, "Stochastic global optimization
+    methods part I: clustering methods").
+    """
     n = len(model)
     pick = np.unique(np.linspace(0, n - 1, min(n, _SCREEN_EPOCHS)).astype(int))
     m = model.magnitude(
         np.broadcast_to(candidates[:, None], (len(candidates), len(pick), 4)), pick, shape
     )
-    cost = np.sum(((m - model.magnitudes[pick]) / model.errors[pick]) ** 2, axis=1)
+    r = (m - model.magnitudes[pick]) / model.errors[pick]
+    screen = np.sum(np.log1p((r / _SCREEN_SCALE) ** 2), axis=1)
+    count = max(_ATTITUDE_VALLEYS, len(candidates) // _DESCENT_FRACTION)
+    lowest = np.argsort(screen, kind="stable")[:count]
+    reached, chi2 = descend_attitudes(model, shape, candidates[lowest], pick, _DESCENT_STEPS)
     spacing = math.exp(LOG_SO3_VOLUME / 3) / len(candidates) ** (1 / 3)
-    fits = [
-        ProfileFit(model, shape, q_ref, q)
-        for q in candidates[
-            distinct_lowest(candidates, cost, _ATTITUDE_VALLEYS, spacing, attitude_angle)
-        ]
-    ]
+    # Descended attitudes within a quarter of the screen's spacing share a valley.
+    valleys = distinct_lowest(reached, chi2, _ATTITUDE_VALLEYS, spacing / 4, attitude_angle)
+    fits = [ProfileFit(model, shape, q_ref, q) for q in reached[valleys]]
     solutions = [local_fit(fit, np.zeros(3), None) for fit in fits]
     best = int(np.argmin([s.cost for s in solutions]))
     return fits[best], solutions[best], spacing
@@ -115,7 +137,8 @@ def stabilised(
     The offset of the ``nadir`` and ``sun-pointing`` profiles (normal prior of
     ``offset_sigma`` rad per axis) starts from the distinct valleys of a scan of
     ``search_candidates // 4`` offsets; the ``inertial`` attitude (uniform prior) from
-    those of ``search_candidates`` uniform attitudes plus ``extra_starts``. The best local
+    the valleys reached by descending the lowest of ``search_candidates`` uniform
+    attitudes plus ``extra_starts`` (:func:`_attitude_scan`). The best local
     optimum is then restarted from shells around it (:func:`shell_restarts`), and from a
     lower point on the line of a weak axis (:func:`weak_axes`, threshold ``weak_sigma``
     rad). ``position``, ``velocity`` (geocentric, any consistent units) are the nadir

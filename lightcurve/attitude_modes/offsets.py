@@ -9,6 +9,11 @@ scan cannot resolve) and restarts from the lowest distinct probes while that low
 posterior — a few rounds of basin hopping (Wales & Doye 1997, "Global optimization by
 basin-hopping and the lowest energy structures of Lennard-Jones clusters") with
 deterministic moves.
+
+A whole inertial attitude has no prior range to scan finely: :func:`descend_attitudes`
+takes many screened attitudes a few batched Levenberg–Marquardt steps downhill at once, so
+the valleys are chosen by where those attitudes lead rather than by the rough ``χ²`` at
+the screen's points.
 """
 
 from __future__ import annotations
@@ -145,6 +150,74 @@ def local_fit(
     chi2 = float(r @ r)
     prior = 0.0 if prior_sigma is None else float(delta @ delta) / prior_sigma**2
     return OffsetFit(delta, chi2 + prior, chi2, j.T @ j)
+
+
+def descend_attitudes(
+    model: PhotometricModel,
+    shape: int,
+    attitudes: np.ndarray,
+    epochs: np.ndarray,
+    steps: int,
+    step: float = 1e-3,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Batched Levenberg–Marquardt steps (Marquardt 1963, "An algorithm for least-squares
+    estimation of nonlinear parameters") of many fixed inertial attitudes at once.
+
+    Each attitude ``c`` moves by ``c ← exp(δ) ⊗ c``, ``δ`` (rad, body axes) the damped
+    Gauss–Newton step of its whitened residuals on ``epochs``, with forward differences of
+    ``step`` rad; a step that lowers its ``χ²`` is kept and divides its damping by 10,
+    one that does not is dropped and multiplies it by 10. One batched render per
+    difference and per trial.
+
+    Parameters
+    ----------
+    model : PhotometricModel
+    shape : int
+        Index of the candidate shape.
+    attitudes : (K, 4) numpy.ndarray
+        Starting attitudes (inertial → body), constant over the arc.
+    epochs : (E,) numpy.ndarray
+        Indices of the measurements fitted.
+    steps : int
+        Trial steps per attitude.
+    step : float
+        Forward-difference step (rad).
+
+    Returns
+    -------
+    (K, 4) numpy.ndarray, (K,) numpy.ndarray
+        The attitudes reached and their ``χ²`` on ``epochs``.
+    """
+    measured, sigma = model.magnitudes[epochs], model.errors[epochs]
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        m = model.magnitude(
+            np.broadcast_to(q[..., None, :], (*q.shape[:-1], len(epochs), 4)), epochs, shape
+        )
+        return (m - measured) / sigma
+
+    q = np.asarray(attitudes, float)
+    r = residuals(q)
+    chi2 = np.sum(r**2, axis=-1)
+    damping = np.full(len(q), 1e-2)
+    probes = rotation_vector_to_quaternion(np.eye(3) * step)
+    for _ in range(steps):
+        rp = residuals(quaternion_multiply(probes[None], q[:, None]))  # (K, 3, E)
+        j = np.swapaxes(rp - r[:, None], 1, 2) / step  # (K, E, 3)
+        normal = np.einsum("kei,kej->kij", j, j)
+        scale = np.einsum("kii->ki", normal)[..., None] * np.eye(3) + 1e-12 * np.eye(3)
+        delta = -np.linalg.solve(
+            normal + damping[:, None, None] * scale, np.einsum("kei,ke->ki", j, r)[..., None]
+        )[..., 0]
+        trial = quaternion_multiply(rotation_vector_to_quaternion(delta), q)
+        r_trial = residuals(trial)
+        chi2_trial = np.sum(r_trial**2, axis=-1)
+        better = chi2_trial < chi2
+        q = np.where(better[:, None], trial, q)
+        r = np.where(better[:, None], r_trial, r)
+        chi2 = np.where(better, chi2_trial, chi2)
+        damping = np.where(better, damping / 10.0, damping * 10.0)
+    return q, chi2
 
 
 def distinct_lowest(
