@@ -31,6 +31,7 @@ from lightcurve.attitude_modes.offsets import (
     ProfileFit,
     descend_attitudes,
     distinct_lowest,
+    fixed_attitude_residuals,
     local_fit,
     posterior_cost,
     shell_restarts,
@@ -99,10 +100,7 @@ def _attitude_scan(
     """
     n = len(model)
     pick = np.unique(np.linspace(0, n - 1, min(n, _SCREEN_EPOCHS)).astype(int))
-    m = model.magnitude(
-        np.broadcast_to(candidates[:, None], (len(candidates), len(pick), 4)), pick, shape
-    )
-    r = (m - model.magnitudes[pick]) / model.errors[pick]
+    r = fixed_attitude_residuals(model, shape, candidates, pick)
     screen = np.sum(np.log1p((r / _SCREEN_SCALE) ** 2), axis=1)
     count = max(_ATTITUDE_VALLEYS, len(candidates) // _DESCENT_FRACTION)
     lowest = np.argsort(screen, kind="stable")[:count]

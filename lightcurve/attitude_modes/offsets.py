@@ -18,6 +18,7 @@ the screen's points.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -152,6 +153,19 @@ def local_fit(
     return OffsetFit(delta, chi2 + prior, chi2, j.T @ j)
 
 
+def fixed_attitude_residuals(
+    model: PhotometricModel, shape: int, attitudes: np.ndarray, epochs: np.ndarray
+) -> np.ndarray:
+    """Whitened residuals ``(m̂ − m)/σ``, ``(..., E)``, of attitudes ``(..., 4)`` (inertial →
+    body) held fixed over the measurements ``epochs`` (indices, ``(E,)``)."""
+    m = model.magnitude(
+        np.broadcast_to(attitudes[..., None, :], (*attitudes.shape[:-1], len(epochs), 4)),
+        epochs,
+        shape,
+    )
+    return (m - model.magnitudes[epochs]) / model.errors[epochs]
+
+
 def descend_attitudes(
     model: PhotometricModel,
     shape: int,
@@ -188,14 +202,7 @@ def descend_attitudes(
     (K, 4) numpy.ndarray, (K,) numpy.ndarray
         The attitudes reached and their ``χ²`` on ``epochs``.
     """
-    measured, sigma = model.magnitudes[epochs], model.errors[epochs]
-
-    def residuals(q: np.ndarray) -> np.ndarray:
-        m = model.magnitude(
-            np.broadcast_to(q[..., None, :], (*q.shape[:-1], len(epochs), 4)), epochs, shape
-        )
-        return (m - measured) / sigma
-
+    residuals = functools.partial(fixed_attitude_residuals, model, shape, epochs=epochs)
     q = np.asarray(attitudes, float)
     r = residuals(q)
     chi2 = np.sum(r**2, axis=-1)
