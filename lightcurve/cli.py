@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from typing import NoReturn
 
 from lightcurve import __version__
+from lightcurve.commands._args import positive_int
 
 logger = logging.getLogger("lightcurve")
 
@@ -184,7 +185,7 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
     _add_verbosity(parser)
     parser.add_argument(
         "--threads",
-        type=_thread_count,
+        type=positive_int,
         metavar="N",
         help="threads to compute on (default: $LIGHTCURVE_THREADS, else every available CPU)",
     )
@@ -225,19 +226,6 @@ def _attach_negative_values(argv: list[str]) -> list[str]:
 _GLOBAL_VALUE_OPTIONS = ("--threads",)
 
 
-def _thread_count(text: str) -> int:
-    """``--threads`` value: a whole number ≥ 1."""
-    try:
-        count = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a whole number of threads, got {text!r}"
-        ) from None
-    if count < 1:
-        raise argparse.ArgumentTypeError(f"the thread count must be at least 1, got {count}")
-    return count
-
-
 def _invoked_command(argv: Sequence[str]) -> str | None:
     """The first argument that is neither an option nor a global option's value."""
     tokens = iter(argv)
@@ -274,7 +262,7 @@ def configure_threads(threads: str | int | None) -> None:
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     if threads is None:
         return
-    count = _thread_count(str(threads))
+    count = positive_int(str(threads))
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = str(count)
     torch = sys.modules.get("torch")

@@ -4,12 +4,14 @@ observation files and output folders, scenario studies)."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where a value is parsed: the top-level parser
+    import numpy as np  # (``lightcurve --version``, ``--threads``) stays free of it
 
 
 def float_vector(*sizes: int) -> Callable[[str], np.ndarray]:
@@ -27,6 +29,8 @@ def float_vector(*sizes: int) -> Callable[[str], np.ndarray]:
     """
 
     def parse(text: str) -> np.ndarray:
+        import numpy as np
+
         try:
             values = np.array([float(v) for v in text.split(",")])
         except ValueError:
@@ -68,8 +72,8 @@ def unit_quaternion(text: str) -> np.ndarray:
     wrong value (``1,2,3,4``) is not silently turned into some rotation.
     """
     q = float_vector(4)(text)
-    norm = float(np.linalg.norm(q))
-    if not np.isfinite(norm) or abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+    norm = math.sqrt(float(q @ q))
+    if not math.isfinite(norm) or abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise argparse.ArgumentTypeError(
             f"expected a unit quaternion q1,q2,q3,q4 (scalar last), got norm {norm:.4g} in {text!r}"
         )
@@ -82,6 +86,8 @@ def inertia_tensor(text: str) -> np.ndarray:
     The tensor is not checked for physical validity here; the attitude core's
     ``validate_inertia`` does that with a message naming the violated inequality.
     """
+    import numpy as np
+
     values = float_vector(3, 6)(text)
     jxx, jyy, jzz = values[:3]
     jxy, jxz, jyz = values[3:] if values.size == 6 else (0.0, 0.0, 0.0)
