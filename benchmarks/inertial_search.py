@@ -34,7 +34,7 @@ import numpy as np
 
 from benchmarks._machine import machine_info
 from benchmarks.attitude_modes import NOISE_MAG, geo_geometry, leo_object
-from filters.attitude import attitude_angle, quaternion_multiply, random_quaternion
+from filters.attitude import random_quaternion
 from lightcurve.atomic import atomic_write_json, json_ready
 from lightcurve.attitude_modes.hypotheses import stabilised
 from lightcurve.attitude_modes.offsets import ProfileFit, local_fit
@@ -97,10 +97,7 @@ def search_against_truth(model: PhotometricModel, shape, truth: np.ndarray, seed
     cpu = time.process_time() - cpu0
     q_ref = np.broadcast_to(np.array([0.0, 0.0, 0.0, 1.0]), (len(model), 4))
     at_truth = local_fit(ProfileFit(model, 0, q_ref, truth), np.zeros(3), None)
-    error = min(
-        math.degrees(float(attitude_angle(quaternion_multiply(g, found.quaternion), truth)))
-        for g in symmetry.quaternions
-    )
+    error = math.degrees(float(symmetry.attitude_error(found.quaternion, truth)))
     worse = found.chi2 > at_truth.chi2 + MISS_CHI2
     return {
         "n_measurements": len(model),
