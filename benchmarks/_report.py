@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lightcurve.atomic import atomic_write_json
+from lightcurve.io.atomic import atomic_write_json
 
 
 def emit_report(report: dict[str, Any], out: str | Path | None, *, indent: int = 2) -> None:
@@ -20,7 +20,7 @@ def emit_report(report: dict[str, Any], out: str | Path | None, *, indent: int =
     report : dict
         JSON-ready figures of the benchmark.
     out : str or pathlib.Path, optional
-        File written atomically (:func:`lightcurve.atomic.atomic_write_json`); None or empty:
+        File written atomically (:func:`lightcurve.io.atomic.atomic_write_json`); None or empty:
         print only.
     indent : int
         Indentation of the printed JSON.

@@ -6,17 +6,17 @@ JSON document.
 accuracy
     A nadir-pointing (LVLH) box-wing in a geostationary slot (100° W, seen from Mount Lemmon,
     night of 2024-03-10, one epoch every 120 s) whose arrays track the Sun, simulated by
-    :func:`lightcurve.simulate.simulate` (shadows ``exact``) and recomputed by an independent
-    numpy/trimesh reference: the attitude from the orbit position and velocity (body z to
-    nadir, y to the negative orbit normal), the array angle by hand from the body-frame Sun,
+    :func:`lightcurve.photometry.simulate.simulate` (shadows ``exact``) and recomputed by an
+    independent numpy/trimesh reference: the attitude from the orbit position and velocity (body z
+    to nadir, y to the negative orbit normal), the array angle by hand from the body-frame Sun,
     the array vertices turned by hand, the posed mesh ray cast with trimesh's pure-numpy
     intersector from seeded uniform random points of every triangle (a point counts only
     when it is both lit and seen), the BRDFs in their vector form per triangle. Two drives:
     the built-in continuous one and one limited to [−150°, −30°], which the Sun leaves at
     the start and end of the night (the reference clips to the nearer limit on the circle).
 speed
-    :class:`~lightcurve.articulated.ArticulatedRenderer` on ``box_wing_tracking`` against
-    :class:`~lightcurve.render.Renderer` on the rigid ``box_wing`` (same mesh, same
+    :class:`~lightcurve.photometry.articulated.ArticulatedRenderer` on ``box_wing_tracking`` against
+    :class:`~lightcurve.photometry.render.Renderer` on the rigid ``box_wing`` (same mesh, same
     materials), same rows, same run; best of several repeats, per shadow mode.
 Seed 20261201 for every random draw.
 """
@@ -40,11 +40,11 @@ import brdf  # noqa: E402
 from benchmarks._machine import machine_info  # noqa: E402
 from benchmarks._report import add_sections_argument  # noqa: E402
 from filters.attitude import quaternion_from_matrix  # noqa: E402
-from lightcurve.articulated import ArticulatedRenderer  # noqa: E402
-from lightcurve.ephemeris import CircularOrbit, orbit_geometry  # noqa: E402
-from lightcurve.render import Renderer  # noqa: E402
-from lightcurve.simulate import simulate  # noqa: E402
-from lightcurve.sites import get_site  # noqa: E402
+from lightcurve.photometry.articulated import ArticulatedRenderer  # noqa: E402
+from lightcurve.photometry.render import Renderer  # noqa: E402
+from lightcurve.photometry.simulate import simulate  # noqa: E402
+from lightcurve.sky.ephemeris import CircularOrbit, orbit_geometry  # noqa: E402
+from lightcurve.sky.sites import get_site  # noqa: E402
 from shapes import get_library  # noqa: E402
 from shapes.articulation import ArticulatedModel, Articulation  # noqa: E402
 

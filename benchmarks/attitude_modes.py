@@ -77,17 +77,17 @@ from filters.attitude import (
     random_quaternion,
     rotate,
 )
-from lightcurve.atomic import atomic_write_json, json_ready
 from lightcurve.attitude_modes import MODE_HYPOTHESES, hypotheses
 from lightcurve.attitude_modes.evidence import ATTITUDE_PRECISION
 from lightcurve.attitude_modes.offsets import ProfileFit, posterior_cost
 from lightcurve.attitude_modes.posterior import LEVELS, level_label
-from lightcurve.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
 from lightcurve.inversion import invert, shape_symmetry
-from lightcurve.measurement import PhotometricModel
-from lightcurve.profiles import euler_offsets_deg, offset_quaternion, profile_attitude
-from lightcurve.simulate import GaussianNoise, simulate
-from lightcurve.sites import get_site
+from lightcurve.io.atomic import atomic_write_json, json_ready
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.profiles import euler_offsets_deg, offset_quaternion, profile_attitude
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
+from lightcurve.sky.sites import get_site
 from shapes import get_library
 
 NOISE_MAG = 0.03

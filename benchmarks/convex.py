@@ -21,7 +21,7 @@ Prints JSON with:
   a,d,k`` the phase function fitted too): where the χ² minimum of this data and model lies,
   its 1σ from the curvature (Δχ² = χ²_ν) and Δχ² at the published 5.761985 h.
 * ``itokawa``: light curves of the (non-convex) Itokawa model simulated night by night on its
-  2001 and 2004 apparitions (two-body orbit ``ITOKAWA_ORBIT`` of ``lightcurve.ephemeris``,
+  2001 and 2004 apparitions (two-body orbit ``ITOKAWA_ORBIT`` of ``lightcurve.sky.ephemeris``,
   Earth from astropy; a 5-h run at 10-min cadence every 3 days in 2001 Feb–Apr and 2004
   Jan–Aug when the solar elongation is ≥ 60°, V ≤ 18 and the phase angle ≤ 90°) with the
   published spin (P = 12.132 h, λ = 128.5°, β = −89.66°, inertia diag(1, 1, 2)), Gaussian
@@ -79,23 +79,23 @@ import torch
 
 from benchmarks._machine import machine_info
 from filters.attitude import attitude_matrix
-from lightcurve.convex import ConvexSettings, Photometry, fit, period_scan
-from lightcurve.convex.minkowski import (
+from lightcurve.analysis.convex import ConvexSettings, Photometry, fit, period_scan
+from lightcurve.analysis.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
     minkowski_polyhedron,
     polytope,
 )
-from lightcurve.convex.scan import SCAN_SETTINGS, EarlyRejection, period_profile, refine
-from lightcurve.ephemeris import (
+from lightcurve.analysis.convex.scan import SCAN_SETTINGS, EarlyRejection, period_profile, refine
+from lightcurve.analysis.spin import SpinState, pole_distance, simulate_rotator
+from lightcurve.photometry.simulate import GaussianNoise
+from lightcurve.sky.ephemeris import (
     ITOKAWA_APPARITIONS,
     HeliocentricOrbit,
     asteroid_geometry,
     itokawa_geometry,
     nightly_epochs,
 )
-from lightcurve.simulate import GaussianNoise
-from lightcurve.spin import SpinState, pole_distance, simulate_rotator
 from shapes import get_library
 from shapes.mass import solid_properties
 from shapes.material import REGOLITH
@@ -382,8 +382,8 @@ def reference(
     command = [sys.executable, "-m", "lightcurve.cli", "convex", str(ARIADNE)]
     command += ["--pole", "220,0", "--period", "5.76198", "--out", str(out_dir)]
     library = (
-        "from lightcurve.convex import Photometry, fit; "
-        "from lightcurve.spin import SpinState; "
+        "from lightcurve.analysis.convex import Photometry, fit; "
+        "from lightcurve.analysis.spin import SpinState; "
         f"d = Photometry.read([{str(ARIADNE)!r}]); "
         "fit(d, SpinState.from_degrees(220.0, 0.0, 5.76198, 0.0, float(d.mjd.min())))"
     )

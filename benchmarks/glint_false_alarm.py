@@ -38,9 +38,9 @@ import pandas as pd
 from scipy.stats import beta
 
 from benchmarks._machine import machine_info
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
-from lightcurve.glint import detect_glints, detection_threshold
-from lightcurve.observations import Observations, datetime_to_mjd
+from lightcurve.analysis.glint import detect_glints, detection_threshold
+from lightcurve.io.observations import Observations, datetime_to_mjd
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
 
 LEVELS = (1e-3, 1e-2, 0.05, 0.2)
 NOISE_MAG = 0.02

@@ -6,8 +6,8 @@ brightening A (mag) and width ``w = 120 s``, at an epoch t₀ drawn uniformly ov
 (ends included). A flash counts as found when the detector, at its default false-alarm level
 (1e-3), reports a glint within three sampling intervals of t₀; glints elsewhere are counted
 separately (false alarms on these curves). The noise and epochs come from a seeded generator,
-so a run with another version of :mod:`lightcurve.glint` on the path (``PYTHONPATH``) measures
-that version on the same trials: this is how the cost of a change of the threshold in
+so a run with another version of :mod:`lightcurve.analysis.glint` on the path (``PYTHONPATH``)
+measures that version on the same trials: this is how the cost of a change of the threshold in
 detection rate is shown.
 
     python -m benchmarks.glint_power [--trials 100] [--seed 0]
@@ -24,8 +24,8 @@ import numpy as np
 import pandas as pd
 
 from benchmarks._machine import machine_info
-from lightcurve.glint import detect_glints
-from lightcurve.observations import Observations, validate_table
+from lightcurve.analysis.glint import detect_glints
+from lightcurve.io.observations import Observations, validate_table
 
 AMPLITUDES_MAG = (0.06, 0.08, 0.10, 0.12, 0.15, 0.20)
 NOISE_MAG = 0.02

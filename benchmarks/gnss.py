@@ -42,7 +42,7 @@ import numpy as np
 from benchmarks._machine import machine_info
 from filters.gnss.constellation import parse_yuma
 from filters.gnss.formation import FormationScenario, simulate_formation
-from lightcurve.atomic import atomic_write_json
+from lightcurve.io.atomic import atomic_write_json
 
 ALMANAC = Path(__file__).resolve().parents[1] / "data" / "gnss" / "gps_week147_yuma.alm"
 AXES = ("radial", "along_track", "cross_track")

@@ -35,12 +35,12 @@ import numpy as np
 from benchmarks._machine import machine_info
 from benchmarks.attitude_modes import NOISE_MAG, geo_geometry, leo_object
 from filters.attitude import random_quaternion
-from lightcurve.atomic import atomic_write_json, json_ready
 from lightcurve.attitude_modes.hypotheses import stabilised
 from lightcurve.attitude_modes.offsets import ProfileFit, local_fit
 from lightcurve.inversion import shape_symmetry
-from lightcurve.measurement import PhotometricModel
-from lightcurve.simulate import GaussianNoise, simulate
+from lightcurve.io.atomic import atomic_write_json, json_ready
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.simulate import GaussianNoise, simulate
 from shapes import get_library
 
 #: Screened uniform attitudes (``invert --modes``'s default).

@@ -38,8 +38,8 @@ from benchmarks.inversion_study import (
 )
 from filters.attitude import quaternion_multiply, rotation_vector_to_quaternion
 from filters.particle import AttitudeParticleFilter
-from lightcurve.atomic import atomic_write_json, json_ready
-from lightcurve.measurement import PhotometricModel
+from lightcurve.io.atomic import atomic_write_json, json_ready
+from lightcurve.photometry.measurement import PhotometricModel
 from shapes import get_library
 
 #: Bank of the MMAE study: six library satellites; truths outside it are the two asteroids

@@ -34,10 +34,10 @@ from filters.attitude import (
 )
 from filters.gaussian import chi2_band, mahalanobis_squared
 from filters.symmetry import SymmetryGroup
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.inversion import InversionResult, invert, shape_symmetry
-from lightcurve.observations import Observations
-from lightcurve.simulate import GaussianNoise, simulate
+from lightcurve.io.observations import Observations
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
 from shapes import FacetModel, get_library
 
 __all__ = [

@@ -34,7 +34,7 @@ import numpy as np
 from benchmarks._machine import machine_info
 from filters.attitude import attitude_angle
 from filters.navigation.monocular import FORMS, MonocularEKF, observability_at
-from lightcurve.atomic import atomic_write_json
+from lightcurve.io.atomic import atomic_write_json
 from lightcurve.scenarios.monocular import load_monocular_scenario
 from lightcurve.studies.monocular import (
     convergence,

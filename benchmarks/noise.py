@@ -29,10 +29,10 @@ import numpy as np
 import pandas as pd
 
 from benchmarks._machine import machine_info
-from lightcurve.conditions import load_conditions
-from lightcurve.ephemeris import Site
-from lightcurve.noise import ObservingNoise
-from lightcurve.observations import Observations, validate_table
+from lightcurve.io.observations import Observations, validate_table
+from lightcurve.photometry.conditions import load_conditions
+from lightcurve.photometry.noise import ObservingNoise
+from lightcurve.sky.sites import Site
 
 N = 10_000
 ALTITUDE_M = 2000.0

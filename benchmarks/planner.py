@@ -40,15 +40,15 @@ from filters.attitude import quaternion_multiply, random_quaternion, rotation_ve
 from filters.planning.information import covariance_measure, forecast
 from filters.planning.schedule import propagate_schedule
 from lightcurve import io
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
-from lightcurve.observations import Observations
-from lightcurve.photometric_planning import (
+from lightcurve.analysis.photometric_planning import (
     ATTITUDE,
     PhotometricPlanningModel,
     ScheduleComparison,
     compare_schedules,
 )
+from lightcurve.io.observations import Observations
 from lightcurve.scenarios.landing import load_scenario
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.studies.landing import STRATEGIES, Study, run_study, summarize
 
 ROOT = Path(__file__).resolve().parents[1]

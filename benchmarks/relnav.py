@@ -32,7 +32,7 @@ import numpy as np
 
 from benchmarks._machine import machine_info
 from benchmarks._report import add_sections_argument
-from lightcurve.atomic import atomic_write_json
+from lightcurve.io.atomic import atomic_write_json
 from lightcurve.scenarios.relnav import load_relnav_scenario
 from lightcurve.studies.relnav import ApproachScenario, simulate_approach
 

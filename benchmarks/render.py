@@ -4,16 +4,16 @@ One run measures, each with its baseline and the ratio (best of ``--repeats``):
 
 * every BRDF on 1280 facets (an icosphere) × 10⁴ epochs, float32 and float64: the default
   (fused numba) path vs the torch path (``backend="torch"``, what every call used before)
-  and the straightforward numpy reference (``lightcurve.reference``); each BRDF's rate
+  and the straightforward numpy reference (``lightcurve.photometry.reference``); each BRDF's rate
   relative to Lambert's;
 * Ashikhmin–Shirley on 20 480 facets and in the particle-filter shape (10⁴ attitudes × one
   epoch), relative to the 1280-facet rate;
 * every BRDF on one thread in CPU time (``time.thread_time``: what other processes take
   of a shared machine's cores is left out), with Lambert's rate over each;
-* with ``--against REV``: the fused kernels of git revision ``REV`` (``lightcurve/kernels/``
-  as it was there, imported under another name) against the current ones, every BRDF, one
-  thread, CPU time of the facet sums alone, alternated repeats (the before/after of a kernel
-  change measured in one run);
+* with ``--against REV``: the fused kernels of git revision ``REV``
+  (``lightcurve/photometry/kernels/`` as it was there, imported under another name) against
+  the current ones, every BRDF, one thread, CPU time of the facet sums alone, alternated
+  repeats (the before/after of a kernel change measured in one run);
 * the one-off cost of the first call in a fresh process (kernel compilation, or loading it
   from numba's on-disk cache) measured in a subprocess;
 * the cost of a small call (13 sigma points × one epoch of a 24-facet cylinder, the UKF's),
@@ -43,9 +43,9 @@ import torch
 from benchmarks._machine import machine_info
 from benchmarks._timing import best_time
 from filters.attitude import random_quaternion
-from lightcurve.kernels import get_num_threads, set_num_threads
-from lightcurve.reference import reference_flux
-from lightcurve.render import Renderer
+from lightcurve.photometry.kernels import get_num_threads, set_num_threads
+from lightcurve.photometry.reference import reference_flux
+from lightcurve.photometry.render import Renderer
 from shapes import Material, get_library, primitives
 
 MATERIALS = {
@@ -168,7 +168,11 @@ def single_thread_cpu_rates(sphere, q, sun, obs, repeats: int) -> dict:
 
 
 def kernels_at(revision: str):
-    """``lightcurve/kernels/`` of git ``revision``, imported as a package of another name."""
+    """The fused kernels of git ``revision``, imported as a package of another name.
+
+    The kernels live in ``lightcurve/photometry/kernels/``; revisions before the rooms of
+    ``lightcurve`` had them in ``lightcurve/kernels/``.
+    """
     root = pathlib.Path(__file__).resolve().parents[1]
 
     def git(*args: str) -> str:
@@ -179,9 +183,13 @@ def kernels_at(revision: str):
     name = "kernels_" + git("rev-parse", "--short", revision).strip()
     folder = pathlib.Path(tempfile.mkdtemp(prefix="render-kernels-")) / name
     folder.mkdir()
-    for path in git("ls-tree", "--name-only", revision, "lightcurve/kernels/").split():
+    for package in ("lightcurve/photometry/kernels", "lightcurve/kernels"):
+        paths = git("ls-tree", "--name-only", revision, package + "/").split()
+        if paths:
+            break
+    for path in paths:
         if path.endswith(".py"):
-            text = git("show", f"{revision}:{path}").replace("lightcurve.kernels", name)
+            text = git("show", f"{revision}:{path}").replace(package.replace("/", "."), name)
             (folder / pathlib.Path(path).name).write_text(text)
     sys.path.insert(0, str(folder.parent))
     return importlib.import_module(name)
@@ -255,7 +263,8 @@ def first_call_seconds(dtype: str) -> dict:
     """Fresh-process cost of the first fused call: import, compile or cache load, render."""
     code = (
         "import time, numpy as np; t0 = time.perf_counter();"
-        "from lightcurve.render import Renderer; from shapes import primitives, Material;"
+        "from lightcurve.photometry.render import Renderer;"
+        "from shapes import primitives, Material;"
         "s = primitives.icosphere(1.0, subdivisions=3);"
         "s = s.with_materials({g: Material('ashikhmin-shirley', {'rd': 0.3, 'rs': 0.4,"
         " 'nu': 100.0, 'nv': 100.0}) for g in s.group_names});"

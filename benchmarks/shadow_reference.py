@@ -37,7 +37,7 @@ import trimesh
 import brdf
 import shapes
 from benchmarks._machine import machine_info
-from lightcurve.render import Renderer
+from lightcurve.photometry.render import Renderer
 from shapes import Material, primitives
 
 SEED = 20261201

@@ -33,10 +33,10 @@ from benchmarks._machine import machine_info  # noqa: E402
 from benchmarks._report import add_sections_argument  # noqa: E402
 from benchmarks._timing import best_time  # noqa: E402
 from filters.attitude import random_quaternion  # noqa: E402
-from lightcurve.render import Renderer  # noqa: E402
+from lightcurve.photometry.render import Renderer  # noqa: E402
 from shapes import primitives  # noqa: E402
-from shapes.raycast import has_embree  # noqa: E402
 from shapes.visibility import DEFAULT_RESOLUTION, DEFAULT_SAMPLES, DEFAULT_SPACING  # noqa: E402
+from shapes.visibility.raycast import has_embree  # noqa: E402
 
 SEED = 20261122
 
@@ -245,7 +245,7 @@ def render_speed(epochs: int, repeats: int, exact_epochs: int) -> list[dict]:
     Workloads: random attitudes (every epoch in other grid cells: the worst case for the
     lookup's caches) and a light curve; "exact" (ray casting) on the first ``exact_epochs``.
     """
-    from lightcurve.kernels import set_num_threads
+    from lightcurve.photometry.kernels import set_num_threads
 
     library = shapes.get_library(shapes.builtin_library_path())
     rng = np.random.default_rng(SEED)
@@ -310,8 +310,8 @@ def table_breakdown(epochs: int, repeats: int) -> list[dict]:
     computes), the joint lookup that writes the dense (rows × facets) factor, and the facet
     sums that multiply that factor in; with the share of rows whose pair of grid cells
     (around ``L`` and around ``V``) an earlier row of the workload already visited."""
-    from lightcurve.kernels import set_num_threads
-    from lightcurve.render import AU_M
+    from lightcurve.photometry.kernels import set_num_threads
+    from lightcurve.photometry.render import AU_M
 
     library = shapes.get_library(shapes.builtin_library_path())
     rng = np.random.default_rng(SEED)

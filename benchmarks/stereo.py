@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from benchmarks._machine import machine_info
-from lightcurve.atomic import atomic_path, atomic_write_json
+from lightcurve.io.atomic import atomic_path, atomic_write_json
 from lightcurve.scenarios.stereo import load_stereo_scenario
 from lightcurve.studies.stereo import QUANTITIES, StereoScenario, run_monte_carlo
 

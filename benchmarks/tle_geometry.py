@@ -7,7 +7,7 @@ at 1 Hz from Zimmerwald, best of three; the baseline is the straightforward astr
 ``get_body("sun")``) on 10⁴ of the epochs, measured in the same run, per epoch.
 
 Accuracy: topocentric direction and range against skyfield's independent SGP4 → ITRS →
-topocentric chain (:mod:`lightcurve.tle_reference`) for 11 LEO, MEO, GEO, Molniya and HEO
+topocentric chain (:mod:`lightcurve.sky.tle_reference`) for 11 LEO, MEO, GEO, Molniya and HEO
 element sets of ``data/tle/catalogue.tle``, 10⁴ random epochs within two days of each TLE
 epoch (seed 2024), from Kislovodsk, Siding Spring and Haleakala.
 
@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._machine import machine_info
-from lightcurve.satellite_geometry import from_tle
-from lightcurve.sites import get_site
-from lightcurve.tle import read_tles, select_object
+from lightcurve.sky.satellite_geometry import from_tle
+from lightcurve.sky.sites import get_site
+from lightcurve.sky.tle import read_tles, select_object
 
 CATALOGUE = Path(__file__).resolve().parents[1] / "data" / "tle" / "catalogue.tle"
 ACCURACY_OBJECTS = (25544, 28057, 43477, 28129, 39191, 28868, 24208, 41105, 8195, 21897, 27540)
@@ -44,7 +44,7 @@ def _ours(tles, site, mjd) -> float:
 
 def _astropy_chain(tle, site, mjd) -> float:
     """The straightforward chain: every rotation and the Sun evaluated by astropy."""
-    from lightcurve.frames import astropy_offline
+    from lightcurve.sky.frames import astropy_offline
 
     u = astropy_offline()
     from astropy.coordinates import (
@@ -93,7 +93,7 @@ def speed() -> dict:
 
 
 def accuracy() -> dict:
-    from lightcurve.tle_reference import compare_topocentric, skyfield_timescale
+    from lightcurve.sky.tle_reference import compare_topocentric, skyfield_timescale
 
     ts = skyfield_timescale()
     catalogue = read_tles(CATALOGUE)

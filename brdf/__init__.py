@@ -9,6 +9,28 @@ both accept numpy arrays or torch tensors (float32/float64, differentiable in th
 >>> import brdf
 >>> model = brdf.get("cook-torrance", rd=0.2, rs=0.6, m=0.3, f0=0.9)
 >>> rho = model([0, 0, 1], [0, 0.6, 0.8], [0, -0.6, 0.8])   # sr⁻¹
+
+Modules
+-------
+- :mod:`~brdf.ashikhmin_shirley` — Anisotropic Phong reflectance of Ashikhmin & Shirley (2000).
+- :mod:`~brdf.cook_torrance` — Cook–Torrance microfacet reflectance (Cook & Torrance 1981).
+- :mod:`~brdf.fitting` — Least-squares fits of reflectance-model parameters to tabulated BRDF
+  measurements.
+- :mod:`~brdf.lambert` — Lambertian (perfectly diffuse) reflectance.
+- :mod:`~brdf.lommel_seeliger` — Lommel–Seeliger + Lambert scattering with the DAMIT phase
+  function, for asteroids.
+- :mod:`~brdf.materials` — Material presets: named reflectance models with parameters and their
+  sources.
+- :mod:`~brdf.phong` — Energy-normalised Phong reflectance (Phong 1975; Lewis 1994
+  normalisation).
+- :mod:`~brdf.quadrature` — Numerical checks of a BRDF: directional-hemispherical albedo and
+  Helmholtz reciprocity.
+- :mod:`~brdf.registry` — Registry of the reflectance models: names, parameters, valid ranges
+  and the `BRDF` object.
+- :mod:`~brdf.tables` — Tabulated BRDF measurements (incidence and scatter angles → value) and
+  the lab-table reader.
+- :mod:`~brdf.two_lobe` — Diffuse term plus two microfacet lobes: a broad glossy lobe and a
+  narrow mirror (glint) lobe.
 """
 
 from brdf import materials

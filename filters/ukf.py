@@ -60,7 +60,7 @@ propagating NaN. Covariances that lose positive definiteness but stay finite are
 rejected for that member (its state is left unchanged) and reported; a NaN measurement (a
 member without data at this epoch) is treated the same way. Dark predictions are
 the measurement function's business (it must return finite values, see
-:class:`lightcurve.measurement.PhotometricModel`); gaps are longer predictions.
+:class:`lightcurve.photometry.measurement.PhotometricModel`); gaps are longer predictions.
 
 References
 ----------

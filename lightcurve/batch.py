@@ -37,7 +37,7 @@ from typing import Any
 import pandas as pd
 from tqdm.auto import tqdm
 
-from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready, output_folder
+from lightcurve.io.atomic import atomic_write_json, atomic_write_table, json_ready, output_folder
 
 __all__ = ["INPUT_SUFFIXES", "collect_inputs", "run_batch", "summary_path"]
 

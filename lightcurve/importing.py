@@ -1,10 +1,10 @@
 """Importing photometry: a table, a site and the target's geometry into observations.
 
-:func:`import_photometry` turns a photometry table (:mod:`lightcurve.tables`) with its time
-column (:mod:`lightcurve.epochs`), a site, and either TLEs or topocentric coordinates recorded
+:func:`import_photometry` turns a photometry table (:mod:`lightcurve.io.tables`) with its time
+column (:mod:`lightcurve.sky.epochs`), a site, and either TLEs or topocentric coordinates recorded
 with each measurement (:class:`Topocentric`) into a validated
-:class:`~lightcurve.observations.Observations` (GCRS vectors in km, the geometry columns of
-:mod:`lightcurve.satellite_geometry`). Every bad value is reported with its row (1 = the
+:class:`~lightcurve.io.observations.Observations` (GCRS vectors in km, the geometry columns of
+:mod:`lightcurve.sky.satellite_geometry`). Every bad value is reported with its row (1 = the
 first data row), its column and its line in the file; ``drop_bad_rows`` drops such rows and
 lists them instead.
 """
@@ -17,15 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcurve.ephemeris import Site
-from lightcurve.epochs import MICROSECONDS_PER_DAY, TimeColumn, epoch_strings, parse_times
-from lightcurve.observations import (
+from lightcurve.io.observations import (
     ObservationError,
     Observations,
     validate_table,
 )
-from lightcurve.tables import CellProblems, RawTable, numeric_column
-from lightcurve.tle import TLE
+from lightcurve.io.tables import CellProblems, RawTable, numeric_column
+from lightcurve.sky.epochs import MICROSECONDS_PER_DAY, TimeColumn, epoch_strings, parse_times
+from lightcurve.sky.sites import Site
+from lightcurve.sky.tle import TLE
 
 __all__ = [
     "Topocentric",
@@ -125,7 +125,7 @@ def import_photometry(
     mag_err : float, optional
         One 1σ error (mag) for every row, when the table has no error column.
     tles : sequence of TLE, optional
-        Element sets of the object (:func:`lightcurve.tle.select_object`): the geometry
+        Element sets of the object (:func:`lightcurve.sky.tle.select_object`): the geometry
         comes from SGP4.
     topocentric : Topocentric, optional
         Or: the geometry comes from the recorded topocentric coordinates.
@@ -152,7 +152,7 @@ def import_photometry(
     ObservationError
         Naming the file, the row, the column and the line of the first bad value.
     """
-    from lightcurve import satellite_geometry
+    from lightcurve.sky import satellite_geometry
 
     if (tles is None) == (topocentric is None):
         raise ValueError("give either TLEs or topocentric columns for the geometry")
@@ -193,7 +193,7 @@ def import_photometry(
         geometry, rows = geometry.subset(keep), rows[keep]
     else:
         if topocentric.range_kind == "height" and topocentric.kind == "alt-az":
-            from lightcurve.topocentric import range_from_height
+            from lightcurve.sky.topocentric import range_from_height
 
             distance = distance.copy()
             distance[rows] = range_from_height(site, first[rows], second[rows], distance[rows])

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from lightcurve import io
-from lightcurve.atomic import atomic_write_table
-from lightcurve.observations import iso_epochs
+from lightcurve.io.atomic import atomic_write_table
+from lightcurve.io.observations import iso_epochs
 
 __all__ = ["SUMMARY_KEYS", "check_request", "invert_file", "resolve_shapes"]
 

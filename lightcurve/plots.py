@@ -20,8 +20,8 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
 )
 from lightcurve import io
-from lightcurve.atomic import atomic_path
-from lightcurve.observations import Observations
+from lightcurve.io.atomic import atomic_path
+from lightcurve.io.observations import Observations
 
 __all__ = ["InversionFolder", "load_result", "plot_result"]
 

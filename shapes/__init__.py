@@ -14,6 +14,36 @@ model (body) frame. Main entry points:
 The names are loaded on first use (PEP 562 module ``__getattr__``): ``import shapes`` or a
 light submodule such as :mod:`shapes.files` does not import trimesh, scipy.spatial or
 networkx, which cost seconds at the start of a process.
+
+Modules
+-------
+- :mod:`~shapes.articulation` — Articulated shapes: named rigid parts on one-axis joints.
+- :mod:`~shapes.compiled` — The compiled (render-ready) form of a facet model: coplanar facets
+  merged by material.
+- :mod:`~shapes.errors` — The exception raised for bad shape input (meshes, materials, library
+  entries).
+- :mod:`~shapes.files` — File helpers of every package: atomic writes, output folders, temporary
+  names, checksums.
+- :mod:`~shapes.io` — Reading and writing facet models: trimesh formats, the DAMIT shape format,
+  grouped OBJ.
+- :mod:`~shapes.mass` — Mass properties of triangle soups: uniform solids, thin shells,
+  assemblies, principal axes.
+- :mod:`~shapes.material` — Surface materials of facet groups, stored as plain BRDF
+  specifications.
+- :mod:`~shapes.model` — The facet model: a triangle mesh with named groups, materials and mass
+  properties.
+- :mod:`~shapes.preview` — PNG previews of facet models, coloured by material, seen from a
+  chosen direction.
+- :mod:`~shapes.primitives` — Primitive facet models with named groups and default materials
+  (SI, metres).
+- :mod:`~shapes.protocols` — The interfaces that facet models, their compiled form and
+  visibility tables see of each other.
+- :mod:`~shapes.validation` — Checks of facet models, each raising
+  :class:`~shapes.errors.ShapeError` with a clear message.
+- :mod:`~shapes.library` — The shape library: a folder of named mesh files with a JSON manifest,
+  and the built-in one (package).
+- :mod:`~shapes.visibility` — Self-shadowing of non-convex models: ray-cast fractions and
+  precomputed bit-mask tables (package).
 """
 
 from __future__ import annotations
@@ -28,18 +58,18 @@ _SOURCES = {
     "FacetModel": "shapes.model",
     "Material": "shapes.material",
     "ShapeError": "shapes.errors",
-    "ShapeLibrary": "shapes.library",
-    "VisibilityTable": "shapes.visibility",
-    "build_visibility_table": "shapes.visibility",
-    "builtin_library_path": "shapes.library",
-    "get_library": "shapes.library",
+    "ShapeLibrary": "shapes.library.core",
+    "VisibilityTable": "shapes.visibility.table",
+    "build_visibility_table": "shapes.visibility.build",
+    "builtin_library_path": "shapes.library.core",
+    "get_library": "shapes.library.core",
     "inertia_from_components": "shapes.model",
-    "joint_visible_fraction": "shapes.visibility",
+    "joint_visible_fraction": "shapes.visibility.sampling",
     "load": "shapes.io",
     "load_damit": "shapes.io",
     "primitives": "shapes.primitives",
     "validate": "shapes.validation",
-    "visible_fraction": "shapes.visibility",
+    "visible_fraction": "shapes.visibility.sampling",
     "write_obj": "shapes.io",
 }
 
@@ -85,13 +115,10 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from shapes.compiled import DEFAULT_ANGLE_TOLERANCE, CompiledFacets
     from shapes.errors import ShapeError
     from shapes.io import load, load_damit, write_obj
-    from shapes.library import ShapeLibrary, builtin_library_path, get_library
+    from shapes.library.core import ShapeLibrary, builtin_library_path, get_library
     from shapes.material import Material
     from shapes.model import FacetModel, inertia_from_components
     from shapes.validation import validate
-    from shapes.visibility import (
-        VisibilityTable,
-        build_visibility_table,
-        joint_visible_fraction,
-        visible_fraction,
-    )
+    from shapes.visibility.build import build_visibility_table
+    from shapes.visibility.sampling import joint_visible_fraction, visible_fraction
+    from shapes.visibility.table import VisibilityTable

@@ -5,7 +5,7 @@ it): the data go to a temporary file in the target folder, are flushed to disk (
 the file is renamed onto the target (``os.replace``). An interrupted run therefore leaves the
 old file or the complete new one, never a partial file. It lives here, in the lowest package
 that writes files, so that :mod:`shapes` (meshes, visibility tables, the library manifest,
-previews) and :mod:`lightcurve` (every result file, through :mod:`lightcurve.atomic`) share it.
+previews) and :mod:`lightcurve` (every result file, through :mod:`lightcurve.io.atomic`) share it.
 """
 
 from __future__ import annotations

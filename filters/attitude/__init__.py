@@ -13,6 +13,8 @@ kinematics
     ``Ω(ω)``, ``q̇``, Euler's equations (full tensor, normalised ``L``, principal ratios).
 inertia
     Validity checks, principal axes, the ``L = J/Jzz`` and tanh ``k`` parameterisations.
+principal_rk4
+    Compiled RK4 chains of torque-free motion in principal axes (numba).
 propagation
     Batched RK4, adaptive DOP853 truth propagation, the closed-form axisymmetric motion.
 jacobians

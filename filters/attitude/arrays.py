@@ -7,7 +7,7 @@ its dtype and device and the result is a tensor; otherwise everything is a numpy
 
 This module is public: code outside the attitude core that wants the same numpy/torch
 behaviour (the camera, gravity and epipolar models of :mod:`filters.navigation`, the
-geometry of :mod:`lightcurve.geometry`) calls :func:`as_arrays` at its entry and
+geometry of :mod:`lightcurve.sky.geometry`) calls :func:`as_arrays` at its entry and
 :func:`matvec` / :func:`cross` inside, instead of re-implementing the dispatch.
 """
 

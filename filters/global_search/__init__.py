@@ -28,6 +28,21 @@ measurement epoch, which determines the whole trajectory under torque-free motio
 The problem enters as callables: ``measure(q (N, E, 4), epochs (E,), shape (N,)) →
 (N, E)`` predicted measurements (torch; no derivatives needed), the epochs' times, the
 measurements and their 1σ errors, and the inertia of each shape.
+
+Modules
+-------
+- :mod:`~filters.global_search.problem` — The global search's problem and candidate types: the
+  batch problem (measurements and the model predicting them from initial states), the Gaussian
+  prior on the initial state, batches of candidates and the ranked result.
+- :mod:`~filters.global_search.refinement` — Batched Levenberg–Marquardt refinement of candidate
+  initial states (Marquardt 1963) with an exact attitude sensitivity, and the refinement of
+  their photometric twins.
+- :mod:`~filters.global_search.screening` — Candidate initial states and their screening:
+  uniform (scrambled Sobol') and prior draws, ranked by a robust misfit on a short window.
+- :mod:`~filters.global_search.search` — The global search's driver: screening rounds and
+  continuation over growing windows.
+- :mod:`~filters.global_search.selection` — Distinct candidates (modulo the shapes' symmetry
+  groups) and the refilling of a candidate set around its distinct survivors.
 """
 
 from __future__ import annotations

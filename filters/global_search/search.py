@@ -177,7 +177,7 @@ def global_search(
     twins : callable, optional
         ``twins(q, ω, shape) → [(q', ω', has_twin), …]``, one triple per kind of twin:
         states that fit short arcs as well as the given ones (the reciprocity twin of any
-        shape, :func:`lightcurve.geometry.reciprocity_twin`; the mirror twin of a
+        shape, :func:`lightcurve.sky.geometry.reciprocity_twin`; the mirror twin of a
         mirror-symmetric one, :meth:`filters.symmetry.SymmetryGroup.mirror_twin`). At the
         first window after which ``keep`` drops fourfold or more, the twins of the
         survivors are refined too, so every member of an ambiguous set reaches the longer

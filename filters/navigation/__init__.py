@@ -6,6 +6,8 @@ camera
     Pinhole camera: projection, back-projection, field of view.
 features
     Feature tracks of a tumbling target seen by a fixed camera.
+essential
+    Two-view geometry: the essential matrix of a frame pair and the relative pose in it.
 epipolar
     Relative rotations from matched pixel tracks (eight-point, LO-RANSAC, refinement;
     Deng et al. 2024).

@@ -125,7 +125,7 @@ def simulate_tracks(
     rng : numpy.random.Generator
     occluded : callable, optional
         ``(origins (M, 3), directions (M, 3)) → (M,) bool`` in the body frame: whether a ray
-        from a point toward the camera hits the body (e.g. ``shapes.raycast.Occluder``).
+        from a point toward the camera hits the body (e.g. ``shapes.visibility.raycast.Occluder``).
     outlier_fraction : float
         Fraction of tracked measurements replaced by uniformly random pixels (mismatches).
     margin : float

@@ -348,7 +348,7 @@ def plan_final_covariance(
     """Choose ``count`` observations along a forecast that minimise the covariance at its end.
 
     Used for keyframes of a recorded sequence (:func:`select_keyframes`) and epochs of a light
-    curve (:mod:`lightcurve.photometric_planning`), batched over runs.
+    curve (:mod:`lightcurve.analysis.photometric_planning`), batched over runs.
 
     Parameters
     ----------

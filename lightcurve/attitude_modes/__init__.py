@@ -1,7 +1,7 @@
 """Attitude-mode identification: is the object held by a control system, or tumbling?
 
 For each candidate shape, every stabilised hypothesis — a profile of
-:mod:`lightcurve.profiles` (``inertial``, ``nadir``, ``nadir yaw-steering``,
+:mod:`lightcurve.photometry.profiles` (``inertial``, ``nadir``, ``nadir yaw-steering``,
 ``sun-pointing``) with an unknown fixed offset — is fitted to the whole arc, and weighed
 against the tumbling hypothesis (a torque-free initial state ``[q₀, ω₀]``, found by
 today's search and filter, then fitted to the whole arc by batched Levenberg–Marquardt).

@@ -39,8 +39,8 @@ from lightcurve.attitude_modes.offsets import (
 from lightcurve.attitude_modes.posterior import sample_offset_posterior
 from lightcurve.attitude_modes.results import TUMBLING, ModeHypothesis
 from lightcurve.attitude_modes.weak_axes import weak_axes
-from lightcurve.measurement import PhotometricModel
-from lightcurve.profiles import body_rates, euler_offsets_deg, profile_attitude
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.profiles import body_rates, euler_offsets_deg, profile_attitude
 
 #: Stabilised hypotheses: label → (profile, yaw steering).
 MODE_HYPOTHESES = {

@@ -13,8 +13,8 @@ from filters.global_search import BatchProblem
 from lightcurve.attitude_modes.evidence import mode_probabilities
 from lightcurve.attitude_modes.hypotheses import MODE_HYPOTHESES, stabilised, tumbling
 from lightcurve.attitude_modes.results import ModeIdentification
-from lightcurve.measurement import PhotometricModel
-from lightcurve.profiles import offset_quaternion
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.profiles import offset_quaternion
 
 
 def identify_attitude_mode(

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from filters.attitude import quaternion_multiply, rotation_vector_to_quaternion
-from lightcurve.measurement import PhotometricModel
+from lightcurve.photometry.measurement import PhotometricModel
 
 _CUBE_NEIGHBOURS = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
 #: Unit directions of the local shells: towards the 26 neighbours of a cube grid point.

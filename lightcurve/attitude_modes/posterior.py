@@ -35,7 +35,7 @@ import emcee
 import numpy as np
 
 from lightcurve.attitude_modes.offsets import OffsetFit, ProfileFit, posterior_cost
-from lightcurve.profiles import euler_offsets_deg
+from lightcurve.photometry.profiles import euler_offsets_deg
 
 #: Credible levels of the reported intervals and regions.
 LEVELS = (0.68, 0.95)

@@ -8,8 +8,8 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from lightcurve.shadow_earth import MODELS
-from lightcurve.tle import DEFAULT_MAX_AGE_DAYS
+from lightcurve.sky.shadow_earth import MODELS
+from lightcurve.sky.tle import DEFAULT_MAX_AGE_DAYS
 
 
 def add_site(parser: argparse.ArgumentParser, default: str | None = None) -> None:

@@ -107,7 +107,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _settings(args: argparse.Namespace):
-    from lightcurve.convex import ConvexSettings
+    from lightcurve.analysis.convex import ConvexSettings
 
     extra = tuple(v.strip() for v in args.free.split(",") if v.strip())
     unknown = set(extra) - {"a", "d", "k", "c"}
@@ -135,10 +135,10 @@ def _settings(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightcurve.atomic import atomic_write_csv, atomic_write_json, json_ready
-    from lightcurve.convex import Photometry, fibonacci_poles, fit, period_scan
-    from lightcurve.convex.scan import SCAN_SETTINGS, refine
-    from lightcurve.spin import SpinState
+    from lightcurve.analysis.convex import Photometry, fibonacci_poles, fit, period_scan
+    from lightcurve.analysis.convex.scan import SCAN_SETTINGS, refine
+    from lightcurve.analysis.spin import SpinState
+    from lightcurve.io.atomic import atomic_write_csv, atomic_write_json, json_ready
 
     if args.period is None and args.period_range is None:
         raise ValueError("give --period HOURS or --period-range A B")
@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
         args.out / "fit.csv",
     )
     if args.plots:
-        from lightcurve.convex.plots import plot_fit
+        from lightcurve.analysis.convex.plots import plot_fit
 
         plot_fit(data, best.model, args.out / "fit.png")
     summary = {
@@ -226,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
     """Drop solutions (sorted by χ²) within ``pole_deg`` and ``period_rel`` of a better one."""
-    from lightcurve.spin import pole_distance
+    from lightcurve.analysis.spin import pole_distance
 
     kept = []
     for s in solutions:
@@ -247,7 +247,7 @@ def _distinct(solutions, pole_deg: float = 5.0, period_rel: float = 1e-6):
 
 
 def _write_shape(solution, args: argparse.Namespace) -> None:
-    from lightcurve.convex.minkowski import minkowski_polyhedron
+    from lightcurve.analysis.convex.minkowski import minkowski_polyhedron
     from shapes import FacetModel, write_obj
 
     vertices, faces = minkowski_polyhedron(
@@ -261,6 +261,6 @@ def _write_shape(solution, args: argparse.Namespace) -> None:
     )
     write_obj(model, args.out / "shape.obj")
     if args.plots:
-        from lightcurve.convex.plots import plot_shape
+        from lightcurve.analysis.convex.plots import plot_shape
 
         plot_shape(vertices, faces, args.out / "shape.png", title=model.name)

@@ -79,7 +79,7 @@ def _span(args: argparse.Namespace) -> np.ndarray:
     """UTC microseconds since MJD 0 of the epochs of --start/--duration/--cadence."""
     import pandas as pd
 
-    from lightcurve.observations import MJD_EPOCH
+    from lightcurve.io.observations import MJD_EPOCH
 
     if args.start is None or args.duration is None:
         raise ValueError("give --start and --duration (or --epochs-from with --tle)")
@@ -96,9 +96,9 @@ def _span(args: argparse.Namespace) -> np.ndarray:
 
 def _circular(args: argparse.Namespace) -> int:
     from lightcurve import io
-    from lightcurve.ephemeris import CircularOrbit, orbit_geometry
-    from lightcurve.epochs import MICROSECONDS_PER_DAY
-    from lightcurve.sites import get_site
+    from lightcurve.sky.ephemeris import CircularOrbit, orbit_geometry
+    from lightcurve.sky.epochs import MICROSECONDS_PER_DAY
+    from lightcurve.sky.sites import get_site
 
     if args.epochs_from:
         raise ValueError("--epochs-from needs --tle")
@@ -125,8 +125,7 @@ def _tle(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from lightcurve import io
-    from lightcurve.epochs import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
-    from lightcurve.observations import (
+    from lightcurve.io.observations import (
         GEOMETRY_COLUMNS,
         OBJECT_COLUMNS,
         OBSERVER_COLUMNS,
@@ -135,10 +134,11 @@ def _tle(args: argparse.Namespace) -> int:
         mjd_to_datetime,
         validate_table,
     )
-    from lightcurve.satellite_geometry import from_tle
-    from lightcurve.shadow_earth import shadow_events
-    from lightcurve.sites import get_site
-    from lightcurve.tle import read_tles, select_object
+    from lightcurve.sky.epochs import MICROSECONDS_PER_DAY, epoch_strings, read_epochs
+    from lightcurve.sky.satellite_geometry import from_tle
+    from lightcurve.sky.shadow_earth import shadow_events
+    from lightcurve.sky.sites import get_site
+    from lightcurve.sky.tle import read_tles, select_object
 
     tles = select_object(read_tles(args.tle), args.norad)
     site = get_site(args.site)

@@ -71,7 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--profile",
-        choices=literal("lightcurve.profiles", "STABILISED_PROFILES"),
+        choices=literal("lightcurve.photometry.profiles", "STABILISED_PROFILES"),
         help="known attitude profile: report the glints' panel normal in the body frame "
         "(normal_body)",
     )
@@ -104,9 +104,9 @@ def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from lightcurve import io
-    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
-    from lightcurve.glint import detect_glints, glint_period, panel_normal
-    from lightcurve.glint_profile import body_normals
+    from lightcurve.analysis.glint import detect_glints, glint_period, panel_normal
+    from lightcurve.analysis.glint.profile import body_normals
+    from lightcurve.io.atomic import atomic_write_json, atomic_write_table, json_ready
 
     if args.profile is None and (args.offset_deg is not None or args.yaw_steering):
         raise ValueError("--offset-deg and --yaw-steering go with --profile")

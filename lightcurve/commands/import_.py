@@ -39,9 +39,9 @@ def _three(text: str) -> tuple[str, str, str]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    time_formats = literal("lightcurve.epochs", "TIME_FORMATS")
-    time_scales = literal("lightcurve.epochs", "TIME_SCALES")
-    delimiters = literal("lightcurve.tables", "DELIMITERS")
+    time_formats = literal("lightcurve.sky.epochs", "TIME_FORMATS")
+    time_scales = literal("lightcurve.sky.epochs", "TIME_SCALES")
+    delimiters = literal("lightcurve.io.tables", "DELIMITERS")
     parser.add_argument("table", metavar="TABLE", help="photometry table (text)")
     parser.add_argument(
         "--time-column", required=True, metavar="C", help="name or 1-based position"
@@ -114,16 +114,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve import io
-    from lightcurve.epochs import TimeColumn
     from lightcurve.importing import Topocentric, import_photometry
-    from lightcurve.sites import get_site
-    from lightcurve.tables import read_table
+    from lightcurve.io.tables import read_table
+    from lightcurve.sky.epochs import TimeColumn
+    from lightcurve.sky.sites import get_site
 
     table = read_table(args.table, args.delimiter, args.header, args.decimal)
     tles = None
     topocentric = None
     if args.tle:
-        from lightcurve.tle import read_tles, select_object
+        from lightcurve.sky.tle import read_tles, select_object
 
         tles = select_object(read_tles(args.tle), args.norad)
     else:

@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve monocular``."""
-    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
+    from lightcurve.io.atomic import atomic_write_json, atomic_write_table, json_ready
     from lightcurve.scenarios import ScenarioError
     from lightcurve.scenarios.monocular import load_monocular_scenario, read_measurements
     from lightcurve.studies.monocular import (

@@ -70,9 +70,9 @@ def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from lightcurve import io
-    from lightcurve.atomic import atomic_write_json, atomic_write_table, json_ready
-    from lightcurve.glint import detect_glints, glint_period
-    from lightcurve.period import period_search
+    from lightcurve.analysis.glint import detect_glints, glint_period
+    from lightcurve.analysis.period import period_search
+    from lightcurve.io.atomic import atomic_write_json, atomic_write_table, json_ready
 
     if any(k < 1 for k in args.orders):
         raise ValueError(f"--orders must be positive integers, got {args.orders}")
@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
 def _plot(result, path: Path) -> None:
     import matplotlib
 
-    from lightcurve.atomic import atomic_path
+    from lightcurve.io.atomic import atomic_path
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve plan``."""
-    from lightcurve.atomic import atomic_write_json
+    from lightcurve.io.atomic import atomic_write_json
     from lightcurve.scenarios.landing import load_scenario
     from lightcurve.studies.landing import run_study, summarize
 

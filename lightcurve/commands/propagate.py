@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     table.to_string(sys.stdout, index=False, float_format=lambda v: f"{v:.6f}")
     sys.stdout.write("\n")
     if args.out:
-        from lightcurve.atomic import atomic_write_table
+        from lightcurve.io.atomic import atomic_write_table
 
         atomic_write_table(table, args.out)
     return 0

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``lightcurve relnav``."""
     import pandas as pd
 
-    from lightcurve.atomic import atomic_write_json, atomic_write_table
+    from lightcurve.io.atomic import atomic_write_json, atomic_write_table
     from lightcurve.scenarios.relnav import _AXES, load_relnav_scenario
     from lightcurve.studies.relnav import simulate_approach
 

@@ -33,7 +33,7 @@ from lightcurve.commands._args import float_vector, inertia_tensor, unit_quatern
 from lightcurve.commands._source import dataclass_fields, literal
 
 if TYPE_CHECKING:
-    from lightcurve.simulate import CCDNoise
+    from lightcurve.photometry.simulate import CCDNoise
 
 NAME = "simulate"
 HELP = "simulate a light curve of a library shape over a geometry file"
@@ -63,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--profile",
-        choices=literal("lightcurve.profiles", "PROFILES"),
+        choices=literal("lightcurve.photometry.profiles", "PROFILES"),
         default="torque-free",
         help="attitude profile (torque-free: tumbling from --q0/--omega0)",
     )
@@ -93,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="*",
         metavar="KEY=VALUE",
         help="CCD photon-noise model; keys: "
-        + ", ".join(dataclass_fields("lightcurve.noise", "CCDNoise"))
+        + ", ".join(dataclass_fields("lightcurve.photometry.noise", "CCDNoise"))
         + " (defaults: a 0.5 m telescope, 1 s exposures)",
     )
     noise.add_argument(
@@ -112,7 +112,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--shadows",
-        choices=literal("lightcurve.render", "SHADOW_MODES"),
+        choices=literal("lightcurve.photometry.render", "SHADOW_MODES"),
         default="auto",
         help="self-shadowing: none, the shape's visibility table, ray casting, or auto "
         "(the table when the shape has one, else none)",
@@ -124,7 +124,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _ccd(pairs: list[str]) -> CCDNoise:
-    from lightcurve.simulate import CCDNoise
+    from lightcurve.photometry.simulate import CCDNoise
 
     values = {}
     for pair in pairs:
@@ -143,8 +143,8 @@ def _ccd(pairs: list[str]) -> CCDNoise:
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve import io
-    from lightcurve.conditions import load_conditions
-    from lightcurve.simulate import GaussianNoise, ObservingNoise, simulate
+    from lightcurve.photometry.conditions import load_conditions
+    from lightcurve.photometry.simulate import GaussianNoise, ObservingNoise, simulate
     from shapes import get_library
 
     if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):

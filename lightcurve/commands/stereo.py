@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     import pandas as pd
     from tqdm import tqdm
 
-    from lightcurve.atomic import atomic_write_json, atomic_write_table
+    from lightcurve.io.atomic import atomic_write_json, atomic_write_table
     from lightcurve.scenarios.stereo import load_stereo_scenario
     from lightcurve.studies.stereo import run_monte_carlo
 

@@ -1,1 +1,7 @@
-"""Adapters for real data sets shipped in ``data/`` (each module documents its source)."""
+"""Adapters for real data sets shipped in ``data/`` (each module documents its source).
+
+Modules
+-------
+- :mod:`~lightcurve.datasets.starlink` — Starlink v1.5 brightness observations (Pomenis, Mount
+  Lemmon) and the two-surface model.
+"""

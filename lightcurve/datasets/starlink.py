@@ -28,15 +28,15 @@ import pandas as pd
 
 from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix
-from lightcurve.ephemeris import Site, site_position
-from lightcurve.observations import (
+from lightcurve.io.observations import (
     OBSERVER_COLUMNS,
     SUN_COLUMNS,
     Observations,
     datetime_to_mjd,
     validate_table,
 )
-from lightcurve.render import Renderer
+from lightcurve.photometry.render import Renderer
+from lightcurve.sky.ephemeris import Site, site_position
 from shapes import FacetModel, Material
 
 __all__ = [
@@ -178,8 +178,8 @@ def pomenis_geometry(
     """Observation geometry (GCRS, km) and attitudes of the Pomenis observations.
 
     The satellite is placed along the observed line of sight (elevation, azimuth) at the
-    recorded height above the WGS84 ellipsoid (:func:`lightcurve.topocentric.range_from_height`,
-    :func:`lightcurve.satellite_geometry.from_horizontal`) — the route of
+    recorded height above the WGS84 ellipsoid (:func:`lightcurve.sky.topocentric.range_from_height`,
+    :func:`lightcurve.sky.satellite_geometry.from_horizontal`) — the route of
     ``lightcurve import --alt-az-range-columns … --range-kind height``.
 
     Returns
@@ -189,8 +189,8 @@ def pomenis_geometry(
     q : (n, 4) numpy.ndarray
         Model attitudes.
     """
-    from lightcurve.satellite_geometry import from_horizontal
-    from lightcurve.topocentric import range_from_height
+    from lightcurve.sky.satellite_geometry import from_horizontal
+    from lightcurve.sky.topocentric import range_from_height
 
     elevation = table["altitude_deg"].to_numpy()
     azimuth = table["azimuth_deg"].to_numpy()
@@ -266,7 +266,7 @@ def predict_pomenis(
         ``mjd``, ``measured``, ``predicted``, ``residual`` (measured − predicted),
         ``phase_angle_deg``, ``altitude_deg``, ``height_km``.
     """
-    from lightcurve.geometry import phase_angle
+    from lightcurve.sky.geometry import phase_angle
 
     table = read_pomenis() if table is None else table
     observations, q = pomenis_geometry(table)

@@ -20,7 +20,7 @@ estimators (``docs/inversion.md`` has the equations and measured figures):
     tempering (:mod:`filters.particle`); the result lists the posterior modes with their
     symmetry-equivalent attitudes.
 
-Every estimator runs on :class:`~lightcurve.measurement.PhotometricModel`. The result,
+Every estimator runs on :class:`~lightcurve.photometry.measurement.PhotometricModel`. The result,
 :class:`InversionResult`, holds the final state at the LAST measurement epoch and a table
 of per-epoch estimates.
 

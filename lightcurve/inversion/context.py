@@ -24,8 +24,8 @@ from filters.global_search import (
 )
 from filters.symmetry import SymmetryGroup, symmetry_group
 from lightcurve.inversion.options import InversionOptions
-from lightcurve.measurement import PhotometricModel
-from lightcurve.observations import Observations
+from lightcurve.io.observations import Observations
+from lightcurve.photometry.measurement import PhotometricModel
 from shapes import FacetModel, get_library
 
 #: Fewest measurements an inversion accepts (six unknowns and a consistency check).

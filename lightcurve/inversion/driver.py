@@ -23,8 +23,8 @@ from lightcurve.inversion.context import (
 from lightcurve.inversion.options import InversionOptions, validate_request
 from lightcurve.inversion.particles import run_pf
 from lightcurve.inversion.result import InversionResult
-from lightcurve.measurement import PhotometricModel
-from lightcurve.observations import Observations
+from lightcurve.io.observations import Observations
+from lightcurve.photometry.measurement import PhotometricModel
 from shapes import FacetModel
 
 #: Method name → its estimator, ``runner(ctx) → InversionResult``.

@@ -13,9 +13,9 @@ from filters.global_search import (
     SearchResult,
     global_search,
 )
-from lightcurve.geometry import reciprocity_twin
 from lightcurve.inversion.context import Context
 from lightcurve.inversion.options import FILTER_REFINE_KEEP, PF_REFINE_KEEP
+from lightcurve.sky.geometry import reciprocity_twin
 
 
 def initial_search(
@@ -80,7 +80,7 @@ def initial_search(
 def _twin_function(ctx: Context, shapes: Sequence[int], reciprocity: bool) -> Callable | None:
     """The photometric twins of search candidates, at the first epoch's geometry: mirror
     twins for the shapes that have them and, with ``reciprocity``, the reciprocity twin
-    (:func:`lightcurve.geometry.reciprocity_twin`) of every candidate and of its mirror
+    (:func:`lightcurve.sky.geometry.reciprocity_twin`) of every candidate and of its mirror
     twin. A search from a prior leaves out the reciprocity twin: it is half a turn away."""
     groups = [ctx.symmetry(s) for s in shapes]
     mirrors = any(len(g.reflections) for g in groups)

@@ -13,6 +13,10 @@ landing
 monocular
     Attitude, rate and inertia of a tumbling target from images (Deng et al. 2024):
     ``lightcurve monocular``.
+monocular_definition
+    What a monocular study is (the scenario) and what one run of it produced.
+monocular_summary
+    The figures of a monocular study: errors, convergence, Monte Carlo table, plots.
 relnav
     Multi-mode relative navigation of an approach (Shi et al.): ``lightcurve relnav``.
 stereo

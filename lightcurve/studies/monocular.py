@@ -20,7 +20,7 @@ from filters.attitude import attitude_angle, propagate
 from filters.navigation.epipolar import attitude_sequence
 from filters.navigation.features import simulate_tracks
 from filters.navigation.monocular import MonocularEKF, perturb_attitudes, reference_frame_truth
-from lightcurve.scenarios.toml import ScenarioError
+from lightcurve.io.scenario_files import ScenarioError
 from lightcurve.studies.monocular_definition import (
     L_NAMES,
     Criteria,
@@ -65,7 +65,7 @@ __all__ = [
 def _library_target(setup: PixelSetup) -> tuple[np.ndarray, np.ndarray, Any]:
     """Feature points (vertices), vertex normals and an occlusion test of the library shape."""
     import shapes
-    from shapes.raycast import Occluder
+    from shapes.visibility.raycast import Occluder
 
     model = shapes.get_library().load(setup.shape)
     vertices = np.asarray(model.vertices, dtype=float) - np.asarray(model.center_of_mass)

@@ -21,7 +21,7 @@ from filters.navigation.monocular import (
     InertiaForm,
     reference_frame_truth,
 )
-from lightcurve.scenarios.toml import ScenarioError
+from lightcurve.io.scenario_files import ScenarioError
 
 L_NAMES = ("Lxx", "Lyy", "Lxy", "Lxz", "Lyz")
 

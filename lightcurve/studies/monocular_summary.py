@@ -19,7 +19,7 @@ import pandas as pd
 from filters.attitude import attitude_angle, inertia_from_tanh, normalized_from_inertia
 from filters.navigation.monocular import InertiaForm, observability_at, trajectory_information
 from filters.planning.observability import information_sigmas
-from lightcurve.atomic import atomic_path
+from lightcurve.io.atomic import atomic_path
 from lightcurve.studies.monocular_definition import L_NAMES, Study
 
 

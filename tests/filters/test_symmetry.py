@@ -16,7 +16,7 @@ from filters.attitude import (
 )
 from filters.symmetry import SymmetryGroup, symmetry_group
 from lightcurve.inversion import shape_symmetry
-from lightcurve.render import Renderer
+from lightcurve.photometry.render import Renderer
 from shapes import FacetModel, Material, get_library, primitives
 
 LIBRARY = get_library()

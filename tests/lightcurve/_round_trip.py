@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from lightcurve import io
-from lightcurve.observations import Observations
+from lightcurve.io.observations import Observations
 
 
 def assert_csv_parquet_round_trip(observations: Observations, folder: Path) -> Observations:

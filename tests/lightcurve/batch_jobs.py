@@ -4,7 +4,7 @@ import time
 from pathlib import Path
 
 from lightcurve import io
-from lightcurve.atomic import atomic_write_table
+from lightcurve.io.atomic import atomic_write_table
 
 
 def count_rows(input_path: Path, result_dir: Path, delay: float = 0.0) -> dict:

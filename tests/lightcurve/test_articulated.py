@@ -6,11 +6,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lightcurve.articulated import ArticulatedRenderer
-from lightcurve.geometry import AU_M
-from lightcurve.observations import Observations, validate_table
-from lightcurve.render import Renderer
-from lightcurve.simulate import simulate
+from lightcurve.io.observations import Observations, validate_table
+from lightcurve.photometry.articulated import ArticulatedRenderer
+from lightcurve.photometry.render import Renderer
+from lightcurve.photometry.simulate import simulate
+from lightcurve.sky.geometry import AU_M
 from shapes import FacetModel, Material, ShapeError, get_library, primitives
 from shapes.articulation import ArticulatedModel, Articulation, axis_rotation
 

@@ -4,7 +4,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lightcurve.atomic import atomic_path, atomic_write_csv, atomic_write_json, atomic_write_table
+from lightcurve.io.atomic import (
+    atomic_path,
+    atomic_write_csv,
+    atomic_write_json,
+    atomic_write_table,
+)
 
 
 def test_failed_write_keeps_old_content(tmp_path):

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from benchmarks.inertial_search import search_against_truth
-from lightcurve.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
-from lightcurve.measurement import PhotometricModel
-from lightcurve.simulate import GaussianNoise, simulate
-from lightcurve.sites import get_site
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import EARTH_RADIUS_KM, CircularOrbit, orbit_geometry
+from lightcurve.sky.sites import get_site
 from shapes import get_library
 
 #: A fixed box-wing on a 1164 km, 51.8° orbit seen from Mount Lemmon on 2024-02-27: two

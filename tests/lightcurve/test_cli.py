@@ -99,7 +99,7 @@ def test_threads_option_sets_every_pool_before_torch_loads():
         "with contextlib.redirect_stdout(io.StringIO()):\n"
         "    code = main(['--threads', '1', 'propagate', '--duration', '10', '--step', '5'])\n"
         "import torch\n"
-        "from lightcurve.kernels import get_num_threads\n"
+        "from lightcurve.photometry.kernels import get_num_threads\n"
         "print(code, torch.get_num_threads(), get_num_threads(), os.environ['OMP_WAIT_POLICY'])\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

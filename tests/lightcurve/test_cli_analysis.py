@@ -8,7 +8,7 @@ import pytest
 
 from lightcurve import io
 from lightcurve.cli import main
-from lightcurve.observations import Observations, validate_table
+from lightcurve.io.observations import Observations, validate_table
 from shapes import load
 
 ARIADNE = "data/ariadne/test_lcs_rel"

@@ -227,7 +227,7 @@ def test_plot_draws_the_result(inversion, tmp_path):
 
 def test_convex_progress_bar(tmp_path, capsys):
     from lightcurve import io as lc_io
-    from lightcurve.observations import Observations
+    from lightcurve.io.observations import Observations
 
     obs = lc_io.read("data/ariadne/test_lcs_rel")
     keep = np.isin(obs.lightcurve_ids, [3, 4])

@@ -3,7 +3,7 @@
 import numpy as np
 
 from lightcurve.commands.shapes import _matrix
-from lightcurve.observations import iso_epochs
+from lightcurve.io.observations import iso_epochs
 
 
 def test_epochs_on_a_whole_second_grid_print_as_milliseconds():

@@ -13,7 +13,7 @@ import trimesh
 from brdf import lommel_seeliger_from_cosines
 from filters.attitude import attitude_matrix
 from lightcurve import io
-from lightcurve.convex import (
+from lightcurve.analysis.convex import (
     ConvexSettings,
     GaussianSphere,
     Photometry,
@@ -23,25 +23,25 @@ from lightcurve.convex import (
     period_scan,
     period_step,
 )
-from lightcurve.convex.fit import _canonical_pole
-from lightcurve.convex.minkowski import (
+from lightcurve.analysis.convex.fit import _canonical_pole
+from lightcurve.analysis.convex.minkowski import (
     close_gaussian_image,
     equivalent_ellipsoid,
     minkowski_polyhedron,
     polytope,
     volume_hessian,
 )
-from lightcurve.convex.model import ConvexModel
-from lightcurve.convex.scan import refine
-from lightcurve.convex.sphere import real_harmonics
-from lightcurve.ephemeris import (
+from lightcurve.analysis.convex.model import ConvexModel
+from lightcurve.analysis.convex.scan import refine
+from lightcurve.analysis.convex.sphere import real_harmonics
+from lightcurve.analysis.spin import SpinState, pole_distance, simulate_rotator
+from lightcurve.io.observations import ObservationError, Observations
+from lightcurve.photometry.simulate import GaussianNoise
+from lightcurve.sky.ephemeris import (
     ITOKAWA_APPARITIONS,
     itokawa_geometry,
     nightly_epochs,
 )
-from lightcurve.observations import ObservationError, Observations
-from lightcurve.simulate import GaussianNoise
-from lightcurve.spin import SpinState, pole_distance, simulate_rotator
 from shapes import FacetModel, get_library, primitives
 from shapes.mass import solid_properties
 from shapes.material import REGOLITH

@@ -8,7 +8,7 @@ import torch
 
 from filters.attitude import attitude_matrix
 from lightcurve import io
-from lightcurve.convex import (
+from lightcurve.analysis.convex import (
     ConvexSettings,
     EarlyRejection,
     GaussianSphere,
@@ -16,12 +16,12 @@ from lightcurve.convex import (
     fit,
     period_scan,
 )
-from lightcurve.convex import data as convex_data
-from lightcurve.convex.compiled import CompiledModel
-from lightcurve.convex.model import ConvexModel
-from lightcurve.geometry import AU_M
-from lightcurve.observations import Observations
-from lightcurve.spin import SpinState, pole_matrix, pole_quaternion
+from lightcurve.analysis.convex import data as convex_data
+from lightcurve.analysis.convex.compiled import CompiledModel
+from lightcurve.analysis.convex.model import ConvexModel
+from lightcurve.analysis.spin import SpinState, pole_matrix, pole_quaternion
+from lightcurve.io.observations import Observations
+from lightcurve.sky.geometry import AU_M
 
 ARIADNE = "data/ariadne/test_lcs_rel"
 

@@ -1,9 +1,9 @@
-"""Batched Levenberg–Marquardt (lightcurve.convex.optimize) on problems with known minima."""
+"""Batched Levenberg–Marquardt (lightcurve.analysis.convex.optimize) on known minima."""
 
 import pytest
 import torch
 
-from lightcurve.convex.optimize import levenberg_marquardt, scaled_inverse
+from lightcurve.analysis.convex.optimize import levenberg_marquardt, scaled_inverse
 
 #: Epochs spanning 24 years in seconds, as the rotation rate of an asteroid sees them.
 SECONDS = torch.linspace(0.0, 7.6e8, 200, dtype=torch.float64)

@@ -4,7 +4,7 @@ import warnings
 
 import numpy as np
 
-from lightcurve.convex.optimize import levenberg_marquardt
+from lightcurve.analysis.convex.optimize import levenberg_marquardt
 
 
 def steep(x, jacobian):

@@ -1,4 +1,4 @@
-"""Heliocentric two-body orbits and asteroid observing geometry (lightcurve.ephemeris)."""
+"""Heliocentric two-body orbits and asteroid observing geometry (lightcurve.sky.ephemeris)."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lightcurve.ephemeris import (
+from lightcurve.sky.ephemeris import (
     AU_KM,
     ITOKAWA_APPARITIONS,
     ITOKAWA_ORBIT,

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from lightcurve.ephemeris import Site, _sun_astropy, site_position, sun_position
-from lightcurve.frames import astropy_offline, frame_rotations, interpolate_at_nodes, rotation_z
+from lightcurve.sky.ephemeris import Site, _sun_astropy, site_position, sun_position
+from lightcurve.sky.frames import astropy_offline, frame_rotations, interpolate_at_nodes, rotation_z
 
 
 @pytest.fixture(scope="module")

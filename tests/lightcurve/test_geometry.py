@@ -11,7 +11,8 @@ from filters.attitude import (
     propagate_torque_free,
     random_quaternion,
 )
-from lightcurve.geometry import (
+from lightcurve.photometry.render import Renderer
+from lightcurve.sky.geometry import (
     AU_M,
     body_directions,
     phase_angle,
@@ -19,7 +20,6 @@ from lightcurve.geometry import (
     reciprocity_twin,
     solar_flux_scale,
 )
-from lightcurve.render import Renderer
 from shapes import get_library
 
 

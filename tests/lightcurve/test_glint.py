@@ -9,18 +9,12 @@ import pytest
 from benchmarks.glint_power import fixed_geometry_curve
 from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix, rotate
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
-from lightcurve.geometry import phase_angle_bisector
-from lightcurve.glint import (
-    Glint,
-    _clipped_mad,
-    _local_fit,
-    detect_glints,
-    glint_period,
-    panel_normal,
-)
-from lightcurve.observations import Observations, datetime_to_mjd
-from lightcurve.simulate import GaussianNoise, simulate
+from lightcurve.analysis.glint import Glint, detect_glints, glint_period, panel_normal
+from lightcurve.analysis.glint.detection import _clipped_mad, _local_fit
+from lightcurve.io.observations import Observations, datetime_to_mjd
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
+from lightcurve.sky.geometry import phase_angle_bisector
 from shapes import Material, primitives
 
 SIDEREAL_DAY = 86164.0905

@@ -10,12 +10,12 @@ from scipy.spatial.transform import Rotation
 
 from filters.attitude import attitude_angle, rotate
 from lightcurve import io
+from lightcurve.analysis.glint.profile import group_panels, profile_attitudes_at
 from lightcurve.cli import main
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
-from lightcurve.geometry import phase_angle_bisector
-from lightcurve.glint_profile import group_panels, profile_attitudes_at
-from lightcurve.profiles import offset_quaternion, profile_attitude
-from lightcurve.simulate import GaussianNoise, simulate
+from lightcurve.photometry.profiles import offset_quaternion, profile_attitude
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
+from lightcurve.sky.geometry import phase_angle_bisector
 from shapes import primitives
 
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")

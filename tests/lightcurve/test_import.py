@@ -11,12 +11,12 @@ import pytest
 from lightcurve import io
 from lightcurve.cli import main
 from lightcurve.datasets.starlink import POMENIS_PATH, predict_observations, predict_pomenis
-from lightcurve.epochs import TimeColumn
 from lightcurve.importing import Topocentric, import_photometry
-from lightcurve.observations import ObservationError
-from lightcurve.sites import get_site
-from lightcurve.tables import read_table
-from lightcurve.tle import read_tles, select_object
+from lightcurve.io.observations import ObservationError
+from lightcurve.io.tables import read_table
+from lightcurve.sky.epochs import TimeColumn
+from lightcurve.sky.sites import get_site
+from lightcurve.sky.tle import read_tles, select_object
 
 ROOT = Path(__file__).resolve().parents[2]
 CATALOGUE = ROOT / "data" / "tle" / "catalogue.tle"

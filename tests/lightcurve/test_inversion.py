@@ -24,8 +24,8 @@ from benchmarks.inversion_study import (
 from filters.attitude import random_quaternion
 from filters.gaussian import chi2_band
 from lightcurve.inversion import InversionResult, invert, shape_symmetry
-from lightcurve.measurement import PhotometricModel
-from lightcurve.observations import Observations
+from lightcurve.io.observations import Observations
+from lightcurve.photometry.measurement import PhotometricModel
 from shapes import get_library
 
 LIBRARY = get_library()

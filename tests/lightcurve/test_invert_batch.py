@@ -26,8 +26,8 @@ import pytest
 
 from lightcurve import io
 from lightcurve.cli import main
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
-from lightcurve.simulate import GaussianNoise, simulate
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
 from shapes import get_library
 
 N_INPUTS = 40

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from lightcurve import io
-from lightcurve.observations import TRUTH_COLUMNS, ObservationError, Observations, validate_table
+from lightcurve.io.observations import TRUTH_COLUMNS, ObservationError, Observations, validate_table
 from tests.lightcurve._round_trip import assert_csv_parquet_round_trip
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -7,7 +7,7 @@ import pytest
 import torch
 from numba import njit
 
-from lightcurve.kernels import (
+from lightcurve.photometry.kernels import (
     FusedFlux,
     block_parameters,
     elementary,
@@ -15,8 +15,8 @@ from lightcurve.kernels import (
     get_num_threads,
     set_num_threads,
 )
-from lightcurve.reference import reference_flux
-from lightcurve.render import Renderer
+from lightcurve.photometry.reference import reference_flux
+from lightcurve.photometry.render import Renderer
 from shapes import Material, get_library, primitives
 from tests.lightcurve._geometry import random_geometry
 

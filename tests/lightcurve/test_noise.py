@@ -9,17 +9,22 @@ from scipy.integrate import quad
 from benchmarks.noise import placeholder_geometry
 from lightcurve import io
 from lightcurve.cli import main
-from lightcurve.conditions import (
+from lightcurve.io.observations import Observations, validate_table
+from lightcurve.photometry.conditions import (
     ObservingConditions,
     load_conditions,
     scintillation_sigma,
     sky_brightness,
 )
-from lightcurve.ephemeris import Site
-from lightcurve.noise import CCDNoise, GaussianNoise, ObservingNoise, observation_elevation
-from lightcurve.observations import Observations, validate_table
-from lightcurve.psf import SeeingProfile
-from lightcurve.satellite_geometry import from_horizontal
+from lightcurve.photometry.noise import (
+    CCDNoise,
+    GaussianNoise,
+    ObservingNoise,
+    observation_elevation,
+)
+from lightcurve.photometry.psf import SeeingProfile
+from lightcurve.sky.satellite_geometry import from_horizontal
+from lightcurve.sky.sites import Site
 
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")
 
@@ -322,8 +327,8 @@ def test_simulate_command_with_conditions(tmp_path, capsys):
 
 def test_circular_orbit_geometry_has_the_horizon_columns():
     """The circular-orbit route writes WGS84 elevations and airmasses, never below the horizon."""
-    from lightcurve.ephemeris import CircularOrbit, orbit_geometry
-    from lightcurve.topocentric import airmass, horizontal_from_gcrs
+    from lightcurve.sky.ephemeris import CircularOrbit, orbit_geometry
+    from lightcurve.sky.topocentric import airmass, horizontal_from_gcrs
 
     mjd = 60379.1 + np.arange(600) * 60.0 / 86400.0
     orbit = CircularOrbit(7000.0, 51.6, 20.0, 0.0, mjd[0])

@@ -7,15 +7,15 @@ import pandas as pd
 import pytest
 
 from lightcurve import io
-from lightcurve.observations import Observations, validate_table
-from lightcurve.period import (
+from lightcurve.analysis.period import (
     fourier_chi2,
     pab_longitude,
     period_search,
     synodic_to_sidereal,
 )
-from lightcurve.simulate import GaussianNoise, simulate
-from lightcurve.spin import SpinState, simulate_rotator
+from lightcurve.analysis.spin import SpinState, simulate_rotator
+from lightcurve.io.observations import Observations, validate_table
+from lightcurve.photometry.simulate import GaussianNoise, simulate
 from shapes import primitives
 from shapes.material import REGOLITH
 

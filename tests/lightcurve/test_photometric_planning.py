@@ -20,8 +20,8 @@ from filters.attitude import (
     torque_free_derivative,
 )
 from lightcurve import io
-from lightcurve.observations import Observations
-from lightcurve.photometric_planning import PhotometricPlanningModel, compare_schedules
+from lightcurve.analysis.photometric_planning import PhotometricPlanningModel, compare_schedules
+from lightcurve.io.observations import Observations
 
 ROOT = Path(__file__).resolve().parents[2]
 GEOMETRY = ROOT / "data" / "geometry" / "geo_mount_lemmon.csv"

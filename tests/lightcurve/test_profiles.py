@@ -10,17 +10,17 @@ from filters.attitude import attitude_angle, attitude_matrix
 from lightcurve import io
 from lightcurve.attitude_modes import TUMBLING, identify_attitude_mode
 from lightcurve.cli import main
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry
 from lightcurve.inversion import batch_problem, shape_symmetry
-from lightcurve.measurement import PhotometricModel
-from lightcurve.observations import ObservationError, validate_table
-from lightcurve.profiles import (
+from lightcurve.io.observations import ObservationError, validate_table
+from lightcurve.photometry.measurement import PhotometricModel
+from lightcurve.photometry.profiles import (
     body_rates,
     euler_offsets_deg,
     offset_quaternion,
     profile_attitude,
 )
-from lightcurve.simulate import GaussianNoise, simulate, truth_states
+from lightcurve.photometry.simulate import GaussianNoise, simulate, truth_states
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
 from shapes import get_library
 
 MOUNT_LEMMON = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")

@@ -5,8 +5,8 @@ import pytest
 import torch
 
 from filters.attitude import random_quaternion
-from lightcurve.reference import reference_flux
-from lightcurve.render import Renderer, flux_to_magnitude, lambert_sphere_flux
+from lightcurve.photometry.reference import reference_flux
+from lightcurve.photometry.render import Renderer, flux_to_magnitude, lambert_sphere_flux
 from shapes import Material, get_library, primitives
 from tests.lightcurve._geometry import AU, random_geometry
 

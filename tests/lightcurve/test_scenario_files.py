@@ -3,7 +3,7 @@
 import pytest
 
 from lightcurve.cli import main
-from lightcurve.scenarios.toml import load_toml
+from lightcurve.io.scenario_files import load_toml
 
 
 def test_a_missing_scenario_file_is_named(tmp_path):

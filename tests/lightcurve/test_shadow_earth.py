@@ -6,14 +6,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightcurve.ephemeris import _sun_astropy
-from lightcurve.shadow_earth import (
+from lightcurve.sky.ephemeris import _sun_astropy
+from lightcurve.sky.shadow_earth import (
     EARTH_RADIUS_KM,
     SUN_RADIUS_KM,
     earth_shadow,
     shadow_events,
 )
-from lightcurve.tle import read_tles, select_object
+from lightcurve.sky.tle import read_tles, select_object
 
 CATALOGUE = Path(__file__).resolve().parents[2] / "data" / "tle" / "catalogue.tle"
 STEP_S = 10.0

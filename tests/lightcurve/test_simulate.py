@@ -7,11 +7,11 @@ import pytest
 from filters.attitude import attitude_angle, axisymmetric_solution
 from lightcurve import io
 from lightcurve.cli import main
-from lightcurve.ephemeris import CircularOrbit, Site, orbit_geometry, sun_position
-from lightcurve.geometry import phase_angle
-from lightcurve.observations import TRUTH_COLUMNS
-from lightcurve.render import Renderer
-from lightcurve.simulate import CCDNoise, GaussianNoise, simulate
+from lightcurve.io.observations import TRUTH_COLUMNS
+from lightcurve.photometry.render import Renderer
+from lightcurve.photometry.simulate import CCDNoise, GaussianNoise, simulate
+from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry, sun_position
+from lightcurve.sky.geometry import phase_angle
 from shapes import get_library
 from tests.lightcurve._round_trip import assert_csv_parquet_round_trip
 
@@ -169,7 +169,7 @@ def test_simulate_command(tmp_path, capsys):
 def test_truth_states_match_the_attitude_core_propagator():
     """The compiled right-hand side gives the attitude core's DOP853 states (full inertia)."""
     from filters.attitude import propagate
-    from lightcurve.simulate import truth_states
+    from lightcurve.photometry.simulate import truth_states
 
     inertia = np.array([[1.0, 0.05, 0.0], [0.05, 1.3, 0.02], [0.0, 0.02, 1.7]])
     q0 = np.array([0.2, -0.4, 0.1, 0.888819])

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
-from lightcurve.ephemeris import Site
-from lightcurve.frames import astropy_offline
-from lightcurve.sites import get_site, load_sites, site_itrs
-from lightcurve.topocentric import (
+from lightcurve.sky.frames import astropy_offline
+from lightcurve.sky.sites import Site, get_site, load_sites, site_itrs
+from lightcurve.sky.topocentric import (
     airmass,
     horizontal_from_itrs,
     itrs_from_horizontal,

@@ -1,4 +1,4 @@
-"""Spin states in the DAMIT convention ↔ attitude quaternions (lightcurve.spin)."""
+"""Spin states in the DAMIT convention ↔ attitude quaternions (lightcurve.analysis.spin)."""
 
 import math
 
@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from filters.attitude import attitude_angle, attitude_matrix, quaternion_from_matrix
-from lightcurve.simulate import truth_states
-from lightcurve.spin import SpinState, pole_distance, pole_vector, spin_from_attitude
+from lightcurve.analysis.spin import SpinState, pole_distance, pole_vector, spin_from_attitude
+from lightcurve.photometry.simulate import truth_states
 
 angles = st.floats(0.0, 2 * math.pi)
 latitudes = st.floats(-1.5, 1.5)

@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from lightcurve.commands._source import dataclass_fields, literal
-from lightcurve.noise import CCDNoise
+from lightcurve.photometry.noise import CCDNoise
 
 #: Packages that take a large part of a second or more to import.
 HEAVY = ("pandas", "trimesh", "torch", "matplotlib", "scipy.spatial", "scipy.optimize", "numba")
@@ -32,7 +32,7 @@ def test_convex_command_module_loads_no_heavy_package():
 
 
 def test_light_shape_modules_do_not_load_trimesh():
-    assert "trimesh" not in _loaded("import shapes, shapes.files, lightcurve.atomic")
+    assert "trimesh" not in _loaded("import shapes, shapes.files, lightcurve.io.atomic")
     assert "trimesh" not in _loaded("from shapes import FacetModel, write_obj")
 
 
@@ -49,12 +49,12 @@ def test_help_builds_the_parser_only(command):
 @pytest.mark.parametrize(
     ("module", "name"),
     [
-        ("lightcurve.profiles", "PROFILES"),
-        ("lightcurve.profiles", "STABILISED_PROFILES"),
-        ("lightcurve.render", "SHADOW_MODES"),
-        ("lightcurve.epochs", "TIME_FORMATS"),
-        ("lightcurve.epochs", "TIME_SCALES"),
-        ("lightcurve.tables", "DELIMITERS"),
+        ("lightcurve.photometry.profiles", "PROFILES"),
+        ("lightcurve.photometry.profiles", "STABILISED_PROFILES"),
+        ("lightcurve.photometry.render", "SHADOW_MODES"),
+        ("lightcurve.sky.epochs", "TIME_FORMATS"),
+        ("lightcurve.sky.epochs", "TIME_SCALES"),
+        ("lightcurve.io.tables", "DELIMITERS"),
     ],
 )
 def test_constants_read_from_source_equal_the_imported_ones(module, name):
@@ -63,20 +63,20 @@ def test_constants_read_from_source_equal_the_imported_ones(module, name):
 
 def test_dataclass_fields_read_from_source_equal_the_imported_ones():
     fields = tuple(field.name for field in dataclasses.fields(CCDNoise))
-    assert dataclass_fields("lightcurve.noise", "CCDNoise") == fields
+    assert dataclass_fields("lightcurve.photometry.noise", "CCDNoise") == fields
 
 
 def test_missing_constants_are_named():
     with pytest.raises(LookupError, match="render has no literal assignment to NOPE"):
-        literal("lightcurve.render", "NOPE")
+        literal("lightcurve.photometry.render", "NOPE")
     with pytest.raises(LookupError, match="defines no class Nope"):
-        dataclass_fields("lightcurve.noise", "Nope")
+        dataclass_fields("lightcurve.photometry.noise", "Nope")
 
 
 def test_convex_fit_from_a_damit_file_loads_neither_pandas_nor_scipy_spatial():
     code = (
-        "from lightcurve.convex import ConvexSettings, Photometry, fit\n"
-        "from lightcurve.spin import SpinState\n"
+        "from lightcurve.analysis.convex import ConvexSettings, Photometry, fit\n"
+        "from lightcurve.analysis.spin import SpinState\n"
         "d = Photometry.read(['data/ariadne/test_lcs_rel'])\n"
         "s = ConvexSettings(nrows=2, degree=2, order=2, max_iter=1)\n"
         "fit(d, SpinState.from_degrees(220.0, 0.0, 5.76198), s)"

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightcurve.sites import get_site
-from lightcurve.tle import (
+from lightcurve.sky.sites import get_site
+from lightcurve.sky.tle import (
     SGP4Error,
     TLEAgeWarning,
     TLEError,
@@ -20,7 +20,7 @@ from lightcurve.tle import (
     read_tles,
     select_object,
 )
-from lightcurve.tle_reference import compare_topocentric, skyfield_timescale
+from lightcurve.sky.tle_reference import compare_topocentric, skyfield_timescale
 
 CATALOGUE = Path(__file__).resolve().parents[2] / "data" / "tle" / "catalogue.tle"
 ISS_LINES = (

@@ -8,7 +8,7 @@ import torch
 
 import shapes
 from lightcurve.cli import main
-from lightcurve.render import Renderer
+from lightcurve.photometry.render import Renderer
 from shapes import Material, primitives
 from shapes.files import file_sha256
 from shapes.library import ShapeLibrary, builtin_library_path

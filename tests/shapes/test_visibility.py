@@ -9,9 +9,9 @@ from scipy.spatial import cKDTree
 
 import shapes
 from shapes import primitives
-from shapes.directions import CubeSphereGrid
 from shapes.library import ShapeLibrary, builtin_library_path
-from shapes.raycast import has_embree
+from shapes.visibility.directions import CubeSphereGrid
+from shapes.visibility.raycast import has_embree
 
 
 def _random_directions(n, seed):

@@ -33,7 +33,7 @@ from filters.navigation.epipolar import (
     sampson_error,
 )
 from filters.navigation.features import FeatureTracks, camera_points, simulate_tracks
-from shapes.raycast import Occluder
+from shapes.visibility.raycast import Occluder
 
 J_A = np.array([[0.85, 0.13, 0.17], [0.13, 1.37, -0.11], [0.17, -0.11, 1.0]])
 CAMERA = PinholeCamera.from_fov(60.0, 1024)

@@ -1,0 +1,15 @@
+"""What a light curve says without an attitude filter: periods, spin, glints, convex shapes.
+
+Modules
+-------
+- :mod:`~lightcurve.analysis.period` — rotation-period search: multi-harmonic Fourier
+  periodogram, aliases, sidereal correction.
+- :mod:`~lightcurve.analysis.spin` — principal-axis spin states (DAMIT convention) and
+  simulated rotators.
+- :mod:`~lightcurve.analysis.glint` — glints (specular flashes): detection, panel normals,
+  spin periods, body normals of stabilised satellites (package).
+- :mod:`~lightcurve.analysis.convex` — convex shape and spin inversion (Kaasalainen & Torppa
+  2001; package).
+- :mod:`~lightcurve.analysis.photometric_planning` — which epochs of a light curve carry
+  attitude information: Fisher-information scheduling.
+"""

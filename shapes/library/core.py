@@ -1,0 +1,529 @@
+"""The shape library: a folder of mesh files with a JSON manifest.
+
+Layout::
+
+    <library>/manifest.json              the manifest (below)
+    <library>/<name>.obj                 one mesh per shape (any format trimesh reads)
+    <library>/<name>.visibility.npz      visibility table of non-convex shapes
+    <library>/.manifest.lock             file lock of writers
+
+``manifest.json``::
+
+    {"format": "space-lightcurves shape library", "version": 1,
+     "shapes": {"<name>": {
+        "mesh": "<name>.obj", "unit": "m" | "km", "sha256": "<hex of the mesh file>",
+        "facets": int, "groups": [str, ...],
+        "materials": {"<group>": {"brdf": str, "params": {str: float},
+                                  "name"?: str, "reference_direction"?: [x, y, z]}},
+        "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
+                    "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
+        "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
+        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
+        "parts"?: [{"name": str, "groups": [str, ...],
+                    "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
+
+``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
+each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
+when loaded; :meth:`ShapeLibrary.load` with ``articulated=True`` returns an
+:class:`~shapes.articulation.ArticulatedModel`.
+
+For ``"given"`` inertia the tensor and centre of mass are used as stored; for ``"solid"`` and
+``"shell"`` they are recomputed from the mesh (uniform density, scaled to ``mass`` when
+present) and stored for reference. Writers hold a :mod:`filelock` lock, write files to
+temporary names and rename them into place, and roll back on failure, so a failed ``add``
+or ``remove`` leaves the library as it was.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from filelock import FileLock
+
+from shapes.articulation import ArticulatedModel, Articulation
+from shapes.errors import ShapeError
+from shapes.files import file_sha256, temp_path
+from shapes.io import load as load_mesh
+from shapes.io import write_obj
+from shapes.library.manifest import (
+    LOCK,
+    MANIFEST,
+    check_name,
+    manifest_entry,
+    manifest_field,
+    read_manifest,
+    swap_in,
+    write_manifest,
+)
+from shapes.material import Material
+from shapes.model import FacetModel
+from shapes.validation import validate
+from shapes.visibility.build import build_visibility_table
+from shapes.visibility.sampling import DEFAULT_SAMPLES, DEFAULT_SPACING
+from shapes.visibility.table import DEFAULT_RESOLUTION, TableFormatError, VisibilityTable
+
+__all__ = [
+    "MANIFEST",
+    "LibraryReadOnlyError",
+    "ShapeLibrary",
+    "builtin_library_path",
+    "check_name",
+    "get_library",
+]
+
+logger = logging.getLogger(__name__)
+
+
+class LibraryReadOnlyError(ShapeError, PermissionError):
+    """A write (add/remove) was attempted on a read-only library."""
+
+
+def builtin_library_path() -> Path:
+    """The built-in library: package data of :mod:`shapes` (``shapes/data/``), read-only."""
+    return Path(str(resources.files("shapes").joinpath("data")))
+
+
+def get_library(path: str | os.PathLike[str] | None = None) -> ShapeLibrary:
+    """The library at ``path``, else ``$LIGHTCURVE_LIBRARY``, else the built-in one.
+
+    The built-in library is opened read-only.
+    """
+    if path is None:
+        path = os.environ.get("LIGHTCURVE_LIBRARY") or None
+    if path is None:
+        return ShapeLibrary(builtin_library_path(), read_only=True)
+    path = Path(path)
+    builtin = path.exists() and path.resolve() == builtin_library_path().resolve()
+    return ShapeLibrary(path, read_only=builtin)
+
+
+class ShapeLibrary:
+    """A folder of named shapes with a JSON manifest (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The folder (created by the first :meth:`add`).
+    read_only : bool
+        Refuse :meth:`add` and :meth:`remove` (the built-in library).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], read_only: bool = False) -> None:
+        self.path = Path(path)
+        self.read_only = read_only
+
+    def __repr__(self) -> str:
+        mode = ", read-only" if self.read_only else ""
+        return f"ShapeLibrary({str(self.path)!r}{mode})"
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def manifest_path(self) -> Path:
+        return self.path / MANIFEST
+
+    def _read_manifest(self) -> dict[str, Any]:
+        return read_manifest(self.path)
+
+    def names(self) -> list[str]:
+        """Sorted shape names."""
+        return sorted(self._read_manifest()["shapes"])
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self._read_manifest()["shapes"]
+
+    def info(self, name: str) -> dict[str, Any]:
+        """The manifest entry of a shape (a copy)."""
+        shapes = self._read_manifest()["shapes"]
+        if name not in shapes:
+            known = ", ".join(sorted(shapes)) or "none"
+            raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
+        return json.loads(json.dumps(shapes[name]))
+
+    def articulation(self, name: str) -> Articulation | None:
+        """The validated parts of an articulated shape, or None for a rigid one."""
+        entry = self.info(check_name(name))
+        if "parts" not in entry:
+            return None
+        return Articulation.from_list(
+            entry["parts"], entry.get("groups", []), f"{self.manifest_path}: shape {name!r}"
+        )
+
+    def load(
+        self,
+        name: str,
+        *,
+        build_visibility: bool = True,
+        visibility: bool = True,
+        articulated: bool = False,
+    ) -> FacetModel | ArticulatedModel:
+        """Load a shape with its materials, inertia and visibility table.
+
+        Parameters
+        ----------
+        name : str
+        build_visibility : bool
+            For a non-convex shape without a stored table, build one (and store it when the
+            library is writable).
+        visibility : bool
+            Attach the visibility table (stored or built). False skips reading, checking and
+            building it: for renderers without self-shadowing (``shadows="none"``).
+        articulated : bool
+            For a shape with ``parts``, return an
+            :class:`~shapes.articulation.ArticulatedModel` (its rigid model at joint angle 0
+            otherwise, the form every rigid consumer reads).
+
+        Raises
+        ------
+        ShapeError
+            Unknown name, mesh file missing or changed since it was added (checksum), bad
+            manifest fields, a stored table that does not fit the mesh.
+        """
+        entry = self.info(check_name(name))
+        where = f"{self.manifest_path}: shape {name!r}"
+        if articulated:
+            parts = self.articulation(name)
+            model = self.load(name, build_visibility=build_visibility, visibility=visibility)
+            return model if parts is None else ArticulatedModel(model, parts)
+        mesh_path = self.path / manifest_field(entry, "mesh", str, where)
+        if not mesh_path.is_file():
+            raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
+        if file_sha256(mesh_path) != entry.get("sha256"):
+            raise ShapeError(
+                f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)"
+            )
+        materials = {
+            group: Material.from_dict(spec, f"{where}, material of group {group!r}")
+            for group, spec in manifest_field(entry, "materials", dict, where).items()
+        }
+        inertia_spec = manifest_field(entry, "inertia", dict, where)
+        source = inertia_spec.get("source")
+        if source not in ("solid", "shell", "given"):
+            raise ShapeError(f"{where}: inertia source must be solid, shell or given")
+        model = load_mesh(
+            mesh_path,
+            unit=manifest_field(entry, "unit", str, where),
+            name=name,
+            materials=materials,
+            inertia=np.asarray(inertia_spec.get("tensor"), float) if source == "given" else source,
+            mass=inertia_spec.get("mass"),
+            center_of_mass=inertia_spec.get("center_of_mass") if source == "given" else None,
+            provenance=entry.get("provenance", {}),
+        )
+        table_name = entry.get("visibility")
+        if not visibility:
+            return model
+        if table_name:
+            table_path = self.path / table_name
+            if not table_path.is_file() or file_sha256(table_path) != entry.get(
+                "visibility_sha256"
+            ):
+                raise ShapeError(f"{where}: visibility table {table_name} missing or changed")
+            try:
+                return model.with_visibility(VisibilityTable.load(table_path))
+            except TableFormatError as exc:
+                if self.read_only or not build_visibility:
+                    raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
+                logger.warning("%s: %s; rebuilding it", where, exc)
+                return self._rebuild(name, model, entry, table_path)
+            except ShapeError as exc:
+                raise ShapeError(f"{where}: {exc}") from None
+        if not build_visibility or model.is_convex:
+            return model
+        table = build_visibility_table(model)
+        if not self.read_only:
+            self._store_table(name, entry["sha256"], table)
+        return model.with_visibility(table)
+
+    def _rebuild_hint(self, name: str) -> str:
+        """How to rebuild the table of ``name`` (a command line)."""
+        if self.path.resolve() == builtin_library_path().resolve():
+            return f"run `python -m shapes.library.builtin {name}`"
+        return f"run `lightcurve shapes rebuild {name} --library {self.path}`"
+
+    def _rebuild(
+        self, name: str, model: FacetModel, entry: Mapping[str, Any], old_table: Path | None
+    ) -> FacetModel:
+        """Build the table of ``model`` with the resolution and sampling of ``old_table``
+        (when readable) and store it."""
+        options: dict[str, Any] = {
+            "resolution": DEFAULT_RESOLUTION,
+            "samples": DEFAULT_SAMPLES,
+            "spacing": DEFAULT_SPACING,
+        }
+        if old_table is not None and old_table.is_file():
+            try:
+                with np.load(old_table, allow_pickle=False) as data:
+                    for key, value in options.items():
+                        if key in data.files:
+                            options[key] = type(value)(data[key])
+            except (OSError, ValueError):
+                pass  # an unreadable old table: the defaults
+        table = build_visibility_table(model, **options)
+        self._store_table(name, entry["sha256"], table)
+        return model.with_visibility(table)
+
+    def rebuild_visibility(self, name: str) -> FacetModel:
+        """Rebuild and store the visibility table of a non-convex shape (e.g. one stored in an
+        older table format), keeping its grid resolution and sampling.
+
+        Returns
+        -------
+        FacetModel
+            The shape with its new table (a convex shape is returned without one).
+        """
+        self._check_writable()
+        entry = self.info(check_name(name))
+        model = self.load(name, visibility=False)
+        if model.is_convex:
+            return model
+        old = entry.get("visibility")
+        return self._rebuild(name, model, entry, self.path / old if old else None)
+
+    def validate(self, name: str) -> FacetModel:
+        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
+        model = self.load(name, build_visibility=False)
+        self.articulation(name)  # parts, when present, must fit the mesh groups
+        try:
+            validate(model)
+        except ShapeError as exc:
+            raise ShapeError(f"{self.path}: shape {name!r}: {exc}") from None
+        if not model.is_convex and model.visibility is None:
+            raise ShapeError(
+                f"{self.path}: shape {name!r} is not convex but has no visibility table"
+            )
+        return model
+
+    # ------------------------------------------------------------------ writing
+    def _check_writable(self) -> None:
+        if self.read_only:
+            raise LibraryReadOnlyError(f"shape library {self.path} is read-only")
+
+    @contextmanager
+    def _locked(self) -> Iterator[dict[str, Any]]:
+        """Hold the writer lock and yield the current manifest."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        with FileLock(str(self.path / LOCK), timeout=60):
+            yield self._read_manifest()
+
+    def _write_manifest(self, manifest: dict[str, Any]) -> None:
+        write_manifest(self.path, manifest)
+
+    def add(
+        self,
+        name: str,
+        mesh: str | os.PathLike[str],
+        *,
+        unit: str = "m",
+        materials: Material | Mapping[str, Material] | None = None,
+        inertia: Any = "auto",
+        mass: float | None = None,
+        provenance: Mapping[str, Any] | None = None,
+        force: bool = False,
+        keep_file: bool = False,
+        parts: Any = None,
+        resolution: int = DEFAULT_RESOLUTION,
+        samples: int = DEFAULT_SAMPLES,
+        spacing: float = DEFAULT_SPACING,
+        progress: bool = False,
+    ) -> FacetModel:
+        """Add a shape from a mesh file.
+
+        Parameters
+        ----------
+        name : str
+            ``[A-Za-z0-9_.-]+``.
+        mesh : path-like
+            Any file :func:`shapes.load` reads.
+        unit, materials, inertia, mass :
+            As :func:`shapes.load`.
+        provenance : mapping, optional
+            ``source``, ``license`` and any other fields; ``added`` defaults to today.
+        force : bool
+            Replace an existing shape of that name.
+        keep_file : bool
+            Copy the mesh file verbatim instead of writing it as a grouped OBJ (only for
+            self-contained files: no MTL or texture side files).
+        parts : list of dict or Articulation, optional
+            Articulated parts (:mod:`shapes.articulation`), checked against the mesh groups
+            before anything is written.
+        resolution, samples, spacing, progress :
+            Visibility-table parameters for non-convex shapes (:func:`build_visibility_table`;
+            ``progress``: a tqdm bar).
+
+        Returns
+        -------
+        FacetModel
+            The shape as :meth:`load` will return it.
+        """
+        self._check_writable()
+        check_name(name)
+        mesh = Path(mesh)
+        self._check_free(name, force)
+        model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
+        articulation = _articulation(parts, model, name, mesh)
+        record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
+        table_options = {
+            "resolution": resolution,
+            "samples": samples,
+            "spacing": spacing,
+            "progress": progress,
+        }
+        verbatim = mesh if keep_file else None
+        return self._commit(
+            name,
+            model,
+            record,
+            force=force,
+            verbatim=verbatim,
+            table_options=table_options,
+            articulation=articulation,
+        )
+
+    def add_model(
+        self,
+        name: str,
+        model: FacetModel,
+        *,
+        provenance: Mapping[str, Any] | None = None,
+        force: bool = False,
+        resolution: int = DEFAULT_RESOLUTION,
+        samples: int = DEFAULT_SAMPLES,
+        spacing: float = DEFAULT_SPACING,
+        parts: Any = None,
+    ) -> FacetModel:
+        """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ.
+
+        ``parts`` as in :meth:`add`.
+        """
+        self._check_writable()
+        check_name(name)
+        self._check_free(name, force)
+        validate(model)
+        articulation = _articulation(parts, model, name, None)
+        record = {**model.provenance, **dict(provenance or {})}
+        table_options = {"resolution": resolution, "samples": samples, "spacing": spacing}
+        return self._commit(
+            name,
+            model,
+            record,
+            force=force,
+            verbatim=None,
+            table_options=table_options,
+            articulation=articulation,
+        )
+
+    def _check_free(self, name: str, force: bool) -> None:
+        if not force and name in self._read_manifest()["shapes"]:
+            raise ShapeError(
+                f"shape {name!r} already exists in library {self.path}; use force to replace it"
+            )
+
+    def _commit(
+        self,
+        name: str,
+        model: FacetModel,
+        provenance: dict[str, Any],
+        *,
+        force: bool,
+        verbatim: Path | None,
+        table_options: dict[str, Any],
+        articulation: Articulation | None = None,
+    ) -> FacetModel:
+        """Write mesh (+ table) under temporary names, then swap them in under the lock."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        suffix = verbatim.suffix.lower() if verbatim is not None else ".obj"
+        final = {"mesh": self.path / f"{name}{suffix}"}
+        staged: dict[str, Path] = {}
+        try:
+            staged["mesh"] = temp_path(self.path, f".{name}.", suffix)
+            if verbatim is not None:
+                shutil.copyfile(verbatim, staged["mesh"])
+            else:
+                write_obj(model, staged["mesh"])
+            inertia_source = model.inertia_source
+            stored = load_mesh(
+                staged["mesh"],
+                unit=model.unit,
+                name=name,
+                materials=model.materials,
+                inertia=model.inertia if inertia_source == "given" else inertia_source,
+                mass=None if np.isnan(model.mass) else model.mass,
+                center_of_mass=model.center_of_mass if inertia_source == "given" else None,
+                provenance=provenance,
+            )
+            if not stored.is_convex:
+                table = build_visibility_table(stored, **table_options)
+                final["visibility"] = self.path / f"{name}.visibility.npz"
+                staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
+                table.save(staged["visibility"])
+                stored = stored.with_visibility(table)
+            entry = manifest_entry(name, stored, final, staged, provenance)
+            if articulation is not None:
+                entry["parts"] = articulation.to_list()
+            with self._locked() as manifest:
+                if name in manifest["shapes"] and not force:
+                    raise ShapeError(f"shape {name!r} already exists in library {self.path}")
+                old = manifest["shapes"].get(name, {})
+                old_files = [self.path / old[k] for k in ("mesh", "visibility") if old.get(k)]
+                manifest["shapes"][name] = entry
+                swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
+            return stored
+        finally:
+            for path in staged.values():
+                path.unlink(missing_ok=True)
+
+    def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
+        """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
+        final = self.path / f"{name}.visibility.npz"
+        staged = temp_path(self.path, f".{name}.", ".npz")
+        try:
+            table.save(staged)
+            with self._locked() as manifest:
+                entry = manifest["shapes"].get(name)
+                if entry is None or entry.get("sha256") != mesh_sha256:
+                    return
+                entry["visibility"] = final.name
+                entry["visibility_sha256"] = file_sha256(staged)
+                swap_in(
+                    {"visibility": staged},
+                    {"visibility": final},
+                    [],
+                    lambda: self._write_manifest(manifest),
+                )
+        finally:
+            staged.unlink(missing_ok=True)
+
+    def remove(self, name: str) -> None:
+        """Remove a shape and its files."""
+        self._check_writable()
+        check_name(name)
+        with self._locked() as manifest:
+            if name not in manifest["shapes"]:
+                known = ", ".join(sorted(manifest["shapes"])) or "none"
+                raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
+            entry = manifest["shapes"].pop(name)
+            self._write_manifest(manifest)
+            for key in ("mesh", "visibility"):
+                if entry.get(key):
+                    (self.path / entry[key]).unlink(missing_ok=True)
+
+
+def _articulation(
+    parts: Any, model: FacetModel, name: str, mesh: Path | None
+) -> Articulation | None:
+    """``parts`` validated against the model's groups (None when not given)."""
+    if parts is None or isinstance(parts, Articulation):
+        if parts is not None:
+            Articulation.from_list(parts.to_list(), model.group_names, f"shape {name!r}")
+        return parts
+    where = f"shape {name!r}" + (f" ({mesh})" if mesh is not None else "")
+    return Articulation.from_list(parts, model.group_names, where)
