@@ -171,7 +171,7 @@ def kernels_at(revision: str):
     """The fused kernels of git ``revision``, imported as a package of another name.
 
     The kernels live in ``lightcurve/photometry/kernels/``; revisions before the rooms of
-    ``lightcurve`` had them in ``lightcurve/kernels/``.
+    ``lightcurve`` had them in ``lightcurve/photometry/kernels/``.
     """
     root = pathlib.Path(__file__).resolve().parents[1]
 
