@@ -21,8 +21,10 @@ adding a command means adding one file. User errors
 project uses for bad input) and usage mistakes are printed as one line
 ``lightcurve <cmd>: error: ...`` with exit code 2; ``-v`` shows the traceback and debug
 logging, ``-q`` keeps warnings and errors only: no progress bars, and no status lines from a
-command that writes its results to files (``--out``); both work before or after the
-command. Every option's help ends with its default, ``(default: X)``.
+command that writes its results to files (``--out``); both work before the command and after
+any command or sub-command (``lightcurve shapes list -q``), and repeat counts add up across
+levels (``lightcurve -v invert … -v`` is ``-vv``). Every option's help ends with its default,
+``(default: X)``.
 
 Threads: ``lightcurve --threads N COMMAND …`` (or the ``LIGHTCURVE_THREADS`` environment
 variable) sets how many threads a command computes on (torch's intra-op threads, the fused
@@ -137,36 +139,69 @@ class ArgumentParser(argparse.ArgumentParser):
     """``argparse.ArgumentParser`` with :class:`HelpFormatter` and one-line usage errors.
 
     Sub-command parsers are made of the same class (argparse's ``add_subparsers`` uses the
-    parent's class), so every level formats and reports the same way.
+    parent's class), so every level formats and reports the same way, and each takes
+    ``-v``/``-q`` (:class:`_SubParsersAction`).
     """
 
     def __init__(self, *args, **kwargs) -> None:
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+        self.register("action", "parsers", _SubParsersAction)
 
     def error(self, message: str) -> NoReturn:
         """Print ``PROG: error: MESSAGE`` and a pointer to ``--help``; exit with status 2."""
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
 
-def _add_verbosity(parser: argparse.ArgumentParser, suffix: str = "") -> None:
-    """``-v``/``-q`` counters; after the command they count into separate destinations."""
+#: The verbosity counters (``-v``/``-q``): the same destinations at every level.
+_VERBOSITY_DESTS = ("verbose", "quiet")
+
+
+def _add_verbosity(parser: argparse.ArgumentParser, default: object = argparse.SUPPRESS) -> None:
+    """``-v``/``-q`` counters into ``args.verbose``/``args.quiet``.
+
+    The top-level parser counts from ``default=0``; every sub-parser gets the same options
+    with ``argparse.SUPPRESS`` as default, so a sub-parser that does not see them leaves the
+    value given before the command alone (:class:`_SubParsersAction` adds up the counts).
+    """
     parser.add_argument(
         "-v",
         "--verbose",
         action="count",
-        default=0,
-        dest=f"verbose{suffix}",
+        default=default,
+        dest="verbose",
         help="more logging (-v: info and tracebacks, -vv: debug)",
     )
     parser.add_argument(
         "-q",
         "--quiet",
         action="count",
-        default=0,
-        dest=f"quiet{suffix}",
+        default=default,
+        dest="quiet",
         help="less output: no progress bars or status lines (-q: warnings and errors, -qq: errors)",
     )
+
+
+class _SubParsersAction(argparse._SubParsersAction):
+    """Sub-commands that take ``-v``/``-q`` wherever they stand.
+
+    Every sub-parser it makes gets the verbosity options (:func:`_add_verbosity`), whichever
+    module adds the sub-parser, so ``lightcurve shapes list -v`` works like
+    ``lightcurve -v shapes list``. argparse parses a sub-command's arguments into a fresh
+    namespace and copies its values over the parent's; the counts given before the
+    sub-command are added to those given after it instead of being replaced.
+    """
+
+    def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
+        parser = super().add_parser(name, **kwargs)
+        _add_verbosity(parser)
+        return parser
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        given = {dest: vars(namespace).pop(dest) for dest in _VERBOSITY_DESTS if dest in namespace}
+        super().__call__(parser, namespace, values, option_string)
+        for dest, count in given.items():
+            setattr(namespace, dest, count + getattr(namespace, dest, 0))
 
 
 def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
@@ -182,7 +217,7 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
         description="Simulate and invert light curves of space objects.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    _add_verbosity(parser)
+    _add_verbosity(parser, default=0)
     parser.add_argument(
         "--threads",
         type=positive_int,
@@ -197,7 +232,6 @@ def build_parser(load: Iterable[str] | None = None) -> argparse.ArgumentParser:
             continue
         module = importlib.import_module(spec.module)
         cmd = sub.add_parser(spec.name, help=spec.help, description=_plain(module.__doc__))
-        _add_verbosity(cmd, suffix="_after")
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
     parser.command_parsers = sub.choices  # the sub-command parsers by name (their errors)
@@ -305,8 +339,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if unrecognized:  # reported by the command's parser: its usage and its --help
         command_parser = parser.command_parsers.get(args.command) if args.command else None
         (command_parser or parser).error(f"unrecognized arguments: {' '.join(unrecognized)}")
-    args.verbose += getattr(args, "verbose_after", 0)
-    args.quiet += getattr(args, "quiet_after", 0)
     logging.basicConfig(level=_log_level(args.verbose, args.quiet), format=_LOG_FORMAT)
     if not getattr(args, "_run", None):
         parser.print_help()

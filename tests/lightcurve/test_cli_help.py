@@ -124,8 +124,7 @@ def test_out_is_the_output_option_everywhere():
 def test_verbosity_flags_before_or_after_the_command(argv):
     parser = build_parser(load=["propagate"])
     args = parser.parse_args(argv)
-    assert args.verbose + getattr(args, "verbose_after", 0) == 1
-    assert args.quiet + getattr(args, "quiet_after", 0) == 1
+    assert (args.verbose, args.quiet) == (1, 1)
 
 
 def test_quiet_run_prints_the_result(capsys):
