@@ -2,8 +2,11 @@
 
 :func:`invert_file` is the batch job: read the file, load the candidate shapes from the
 library, run :func:`lightcurve.inversion.invert`, and write ``estimates.parquet`` and the
-summary record (returned; the batch layer writes ``summary.json``). Every option is plain
-data so the job can be shipped to worker processes or a Dask cluster.
+summary record (returned; the batch layer writes ``summary.json``). It takes two frozen
+objects, plain data that ships to worker processes or a Dask cluster: an :class:`InvertJob`
+(method, candidate shapes, library, the prior and search request, seed, ``modes``, how to
+read the file) and the inversion's tuning, an
+:class:`~lightcurve.inversion.options.InversionOptions`.
 
 Summary keys (the contract of ``docs/inversion.md``): ``input``, ``method``, ``status``,
 ``error``, ``shape``, ``shape_probabilities``, ``none_fits``, ``epoch`` (ISO UTC of the last
@@ -15,9 +18,10 @@ measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``, ``omega_s
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,7 +29,10 @@ from lightcurve import io
 from lightcurve.io.atomic import atomic_write_table
 from lightcurve.io.observations import iso_epochs
 
-__all__ = ["SUMMARY_KEYS", "check_request", "invert_file", "resolve_shapes"]
+if TYPE_CHECKING:
+    from lightcurve.inversion.options import InversionOptions
+
+__all__ = ["SUMMARY_KEYS", "InvertJob", "check_request", "invert_file", "resolve_shapes"]
 
 SUMMARY_KEYS = (
     "input",
@@ -86,35 +93,80 @@ def resolve_shapes(
     return names
 
 
-def _invert_arguments(
-    *,
-    q0: list[float] | None,
-    omega0_rad_s: list[float] | None,
-    attitude_sigma_deg: float | None,
-    omega_sigma_rad_s: float | None,
-    omega_max_rad_s: float | None,
-    particles: int | None,
-    init: str,
-    mode_weak_sigma_deg: float | None = None,
-) -> dict[str, Any]:
-    """The keyword arguments of :func:`lightcurve.inversion.invert` from the job's options
-    (those left None keep the library's defaults)."""
+@dataclass(frozen=True)
+class InvertJob:
+    """What a ``lightcurve invert`` run asks of every input file, besides the tuning that
+    :class:`~lightcurve.inversion.options.InversionOptions` holds.
+
+    Attributes
+    ----------
+    method : {"ukf", "mmae", "pf"}
+    shape_names : tuple of str, optional
+        Candidate shapes (:func:`resolve_shapes`); None: the shape each file's
+        ``# shape:`` header names.
+    library : str, optional
+        Shape library folder (default: ``$LIGHTCURVE_LIBRARY`` or the built-in one).
+    q0 : tuple of 4 float, optional
+        Prior attitude at the first epoch (scalar last, inertial → body).
+    omega0_rad_s : tuple of 3 float, optional
+        Prior body rates at the first epoch, rad/s.
+    attitude_sigma_deg, omega_sigma_rad_s, omega_max_rad_s : float, optional
+        Prior 1σ of the attitude (deg) and of the rates (rad/s), bound on ``|ω|`` (rad/s).
+    particles : int, optional
+        PF particles.
+    seed : int
+        Seed of the inversion's random draws.
+    modes : bool
+        Also weigh stabilised attitude profiles against tumbling.
+    drop_bad_rows : bool
+        Drop invalid rows of an input instead of failing it.
+
+    The prior, bound and particle count left None keep the defaults of
+    :func:`lightcurve.inversion.invert`. Sequences are stored as tuples.
+    """
+
+    method: str
+    shape_names: tuple[str, ...] | None = None
+    library: str | None = None
+    q0: tuple[float, ...] | None = None
+    omega0_rad_s: tuple[float, ...] | None = None
+    attitude_sigma_deg: float | None = None
+    omega_sigma_rad_s: float | None = None
+    omega_max_rad_s: float | None = None
+    particles: int | None = None
+    seed: int = 0
+    modes: bool = False
+    drop_bad_rows: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("shape_names", "q0", "omega0_rad_s"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, tuple):
+                object.__setattr__(self, name, tuple(_items(value)))
+
+
+def _items(value: Sequence[Any] | Any) -> list[Any]:
+    """The items of a list, tuple or numpy array as plain Python values."""
+    return value.tolist() if hasattr(value, "tolist") else list(value)
+
+
+def _invert_arguments(job: InvertJob) -> dict[str, Any]:
+    """The request keywords of :func:`lightcurve.inversion.invert` from the job (those left
+    None keep the library's defaults)."""
     arguments = {
-        "q0": None if q0 is None else np.asarray(q0, float),
-        "omega0": None if omega0_rad_s is None else np.asarray(omega0_rad_s, float),
-        "attitude_sigma_deg": attitude_sigma_deg,
-        "omega_sigma": omega_sigma_rad_s,
-        "omega_max": omega_max_rad_s,
-        "particles": particles,
-        "init": init,
-        "mode_weak_sigma_deg": mode_weak_sigma_deg,
+        "q0": None if job.q0 is None else np.asarray(job.q0, float),
+        "omega0": None if job.omega0_rad_s is None else np.asarray(job.omega0_rad_s, float),
+        "attitude_sigma_deg": job.attitude_sigma_deg,
+        "omega_sigma": job.omega_sigma_rad_s,
+        "omega_max": job.omega_max_rad_s,
+        "particles": job.particles,
     }
     return {k: v for k, v in arguments.items() if v is not None}
 
 
-def check_request(options: dict[str, Any]) -> None:
-    """Check the options of a batch of :func:`invert_file` jobs before any input is read,
-    with the library's own rules (:func:`lightcurve.inversion.validate_request`).
+def check_request(job: InvertJob, options: InversionOptions | None = None) -> None:
+    """Check a batch of :func:`invert_file` jobs before any input is read, with the
+    library's own rules (:func:`lightcurve.inversion.validate_request`).
 
     Raises
     ------
@@ -123,47 +175,30 @@ def check_request(options: dict[str, Any]) -> None:
     """
     from lightcurve.inversion import validate_request
 
-    names = options.get("shape_names")
-    keys = ("q0", "omega0_rad_s", "attitude_sigma_deg", "omega_sigma_rad_s", "omega_max_rad_s")
     validate_request(
-        options["method"],
-        modes=bool(options.get("modes")),
-        n_shapes=None if names is None else len(names),
-        **_invert_arguments(
-            **{key: options.get(key) for key in keys},
-            particles=options.get("particles"),
-            init=options.get("init", "search"),
-            mode_weak_sigma_deg=options.get("mode_weak_sigma_deg"),
-        ),
+        job.method,
+        options,
+        modes=job.modes,
+        n_shapes=None if job.shape_names is None else len(job.shape_names),
+        **_invert_arguments(job),
     )
 
 
 def invert_file(
     input_path: Path,
     result_dir: Path,
+    job: InvertJob,
+    options: InversionOptions | None = None,
     *,
-    method: str,
-    shape_names: list[str] | None,
-    library: str | None = None,
-    q0: list[float] | None = None,
-    omega0_rad_s: list[float] | None = None,
-    attitude_sigma_deg: float | None = None,
-    omega_sigma_rad_s: float | None = None,
-    omega_max_rad_s: float | None = None,
-    particles: int | None = None,
-    seed: int = 0,
-    init: str = "search",
-    drop_bad_rows: bool = False,
-    modes: bool = False,
-    mode_weak_sigma_deg: float | None = None,
     progress: Callable[[float, str], None] | None = None,
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
 
     A file whose header names its object's shape (``# shape: NAME``, as ``lightcurve
-    simulate`` writes) must name a shape of the library; with ``shape_names`` None that
-    shape is the file's only candidate. ``progress(fraction, message)``, when given, is
-    handed to :func:`~lightcurve.inversion.invert`.
+    simulate`` writes) must name a shape of the library; with ``job.shape_names`` None
+    that shape is the file's only candidate. ``options`` (default: the defaults) tune the
+    inversion. ``progress(fraction, message)``, when given, is handed to
+    :func:`~lightcurve.inversion.invert`.
 
     Returns
     -------
@@ -179,44 +214,36 @@ def invert_file(
     from lightcurve.inversion import invert
     from shapes import get_library
 
-    observations = io.read(input_path, drop_bad_rows=drop_bad_rows)
-    lib = get_library(library)
+    observations = io.read(input_path, drop_bad_rows=job.drop_bad_rows)
+    lib = get_library(job.library)
     declared = observations.meta.get("shape")
     if declared is not None:
         try:
             lib.load(declared)
         except ValueError as exc:
             raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
+    shape_names = job.shape_names
     if shape_names is None:
         if declared is None:
             raise ValueError(
                 f"{input_path}: no candidate shape: the file has no '# shape:' header and "
                 "none of --shape, --shapes, --all-shapes was given"
             )
-        shape_names = [declared]
+        shape_names = (declared,)
     candidates = {name: lib.load(name) for name in shape_names}
-    options = _invert_arguments(
-        q0=q0,
-        omega0_rad_s=omega0_rad_s,
-        attitude_sigma_deg=attitude_sigma_deg,
-        omega_sigma_rad_s=omega_sigma_rad_s,
-        omega_max_rad_s=omega_max_rad_s,
-        particles=particles,
-        init=init,
-        mode_weak_sigma_deg=mode_weak_sigma_deg,
-    )
     result = invert(
         observations,
         candidates,
-        method=method,
-        modes=modes,
-        seed=seed,
+        method=job.method,
+        modes=job.modes,
+        seed=job.seed,
         progress=progress,
-        **options,
+        options=options,
+        **_invert_arguments(job),
     )
     atomic_write_table(result.estimates, result_dir / "estimates.parquet")
     return {
-        "method": method,
+        "method": job.method,
         "status": "ok",
         "error": None,
         "shape": result.shape,

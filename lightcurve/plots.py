@@ -2,11 +2,18 @@
 
 Every function takes the loaded result and returns a matplotlib figure; :func:`plot_result`
 writes them all as PNGs. Angles are plotted in degrees and rates in deg/s.
+
+Against truth columns, ``states.png`` plots the errors modulo the rotational symmetry group
+``G`` of the result's shape (the most probable one for MMAE and the PF), as the inversion's
+figures in ``docs/inversion.md`` measure them: light curves determine the attitude only up
+to ``G`` (:mod:`filters.symmetry`), so an estimate at a symmetric twin of the truth is a
+right answer. :func:`state_errors` computes the plotted errors.
 """
 
 from __future__ import annotations
 
 import json
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,29 +22,43 @@ import pandas as pd
 
 from filters.attitude import (
     attitude_matrix,
+    quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_euler321,
     quaternion_to_rotation_vector,
 )
+from filters.symmetry import SymmetryGroup
 from lightcurve import io
 from lightcurve.io.atomic import atomic_path
 from lightcurve.io.observations import Observations
 
-__all__ = ["InversionFolder", "load_result", "plot_result"]
+__all__ = ["InversionFolder", "StateErrors", "load_result", "plot_result", "state_errors"]
 
 
 @dataclass
 class InversionFolder:
-    """An inversion result folder: its summary, estimates and (when readable) the input."""
+    """An inversion result folder: its summary, estimates and (when readable) the input.
+
+    ``symmetry`` is the rotational symmetry group of the summary's shape, loaded when the
+    input has truth columns (None otherwise, or when the shape cannot be loaded: then
+    ``symmetry_problem`` says why and the errors are plotted unfolded).
+    """
 
     path: Path
     summary: dict
     estimates: pd.DataFrame
     observations: Observations | None
+    symmetry: SymmetryGroup | None = None
+    symmetry_problem: str | None = None
 
 
-def load_result(path: str | Path) -> InversionFolder:
-    """Read ``summary.json`` and ``estimates.parquet`` of one input's result folder."""
+def load_result(path: str | Path, library: str | None = None) -> InversionFolder:
+    """Read ``summary.json`` and ``estimates.parquet`` of one input's result folder.
+
+    With truth columns in the input, the symmetry group of the summary's shape is taken
+    from ``library`` (default: ``$LIGHTCURVE_LIBRARY`` or the built-in library, as for
+    ``lightcurve invert``).
+    """
     path = Path(path)
     summary_file = path / "summary.json"
     if not summary_file.is_file():
@@ -56,7 +77,26 @@ def load_result(path: str | Path) -> InversionFolder:
         observations = io.read(summary["input"])
     except (OSError, ValueError):
         observations = None
-    return InversionFolder(path, summary, estimates, observations)
+    result = InversionFolder(path, summary, estimates, observations)
+    if _truth(result) is not None:
+        result.symmetry, result.symmetry_problem = _shape_symmetry(summary.get("shape"), library)
+    return result
+
+
+def _shape_symmetry(
+    name: str | None, library: str | None
+) -> tuple[SymmetryGroup | None, str | None]:
+    """The symmetry group of the result's shape, or None and the reason."""
+    if not name:
+        return None, "the summary names no shape"
+    from lightcurve.inversion import shape_symmetry
+    from shapes import get_library
+
+    try:
+        shape = get_library(library).load(name)
+    except (OSError, ValueError, KeyError) as exc:
+        return None, f"shape {name!r} not loadable ({exc}); pass its --library"
+    return shape_symmetry(shape), None
 
 
 def _pyplot():
@@ -125,8 +165,147 @@ def _truth(result: InversionFolder) -> np.ndarray | None:
     return obs.truth
 
 
+@dataclass
+class StateErrors:
+    """The errors ``states.png`` plots against the truth, per epoch.
+
+    Attributes
+    ----------
+    attitude_deg : (N, 3) numpy.ndarray
+        Rotation vector of ``δq = q̂' ⊗ q⁻¹`` (deg, body frame), ``q̂'`` the estimate mapped
+        onto its symmetry-equivalent attitude nearest the truth ``q``.
+    rate_deg_s : (N, 3) numpy.ndarray
+        ``R ω̂ − ω`` (deg/s): the estimated rates mapped with the same element ``R``.
+    sigma_attitude_deg, sigma_rate_deg_s : (N, 3) numpy.ndarray
+        1σ of the mapped estimate: ``√((R∘R) σ²)``, the diagonal of ``R P Rᵀ`` for the
+        stored diagonal ``P`` (exact for the signed-permutation elements of box-like
+        groups; equal to ``σ`` when ``R`` is diagonal, e.g. 180° turns about body axes).
+    rotations : (N, 3, 3) numpy.ndarray
+        The group element ``R`` used at each epoch (``A(q̂') = R A(q̂)``); the identity
+        when not folded.
+    folded : bool
+        Whether the errors are taken modulo a non-trivial group.
+    """
+
+    attitude_deg: np.ndarray
+    rate_deg_s: np.ndarray
+    sigma_attitude_deg: np.ndarray
+    sigma_rate_deg_s: np.ndarray
+    rotations: np.ndarray
+    folded: bool
+
+
+def state_errors(
+    q: np.ndarray,
+    omega: np.ndarray,
+    sigma_attitude_deg: np.ndarray,
+    sigma_rate: np.ndarray,
+    truth: np.ndarray,
+    group: SymmetryGroup | None = None,
+) -> StateErrors:
+    """Attitude and rate errors against the truth modulo a symmetry group.
+
+    At each epoch the estimate ``(q̂, ω̂)`` is replaced by the symmetry-equivalent state
+    ``(s ⊗ q̂, R ω̂)`` whose attitude is nearest the truth (:func:`_nearest_equivalent`; for
+    a continuous axis the rotation about it is chosen too, so the error has no component
+    along the axis). The element is chosen per epoch, as
+    :meth:`~filters.symmetry.SymmetryGroup.attitude_error` (and the summary figures of
+    ``docs/inversion.md``) do: equivalent states fit every measurement alike, so a filter
+    whose leading hypothesis passes from one to another has made no error. The norm of the
+    attitude error is ``group.attitude_error(q̂, q)``.
+
+    Parameters
+    ----------
+    q : (N, 4) array
+        Estimated attitudes.
+    omega : (N, 3) array
+        Estimated body rates, rad/s.
+    sigma_attitude_deg : (N, 3) array
+        1σ of the attitude error per body axis, deg.
+    sigma_rate : (N, 3) array
+        1σ of the rates, rad/s.
+    truth : (N, 7) array
+        True ``q1..q4, wx, wy, wz`` (rad/s).
+    group : SymmetryGroup, optional
+        The shape's group; None or trivial leaves the errors unfolded.
+
+    Returns
+    -------
+    StateErrors
+    """
+    q = np.asarray(q, dtype=float)
+    omega = np.asarray(omega, dtype=float)
+    truth = np.asarray(truth, dtype=float)
+    q_true, omega_true = truth[:, :4], truth[:, 4:7]
+    folded = group is not None and not group.is_trivial
+    if folded:
+        q, rotations = _nearest_equivalent(group, q, q_true)
+        omega = np.einsum("nij,nj->ni", rotations, omega)
+    else:
+        rotations = np.broadcast_to(np.eye(3), (len(q), 3, 3)).copy()
+    squares = rotations**2  # variances of R x for a diagonal covariance of x
+    sigma_att = np.sqrt(np.einsum("nij,nj->ni", squares, np.asarray(sigma_attitude_deg) ** 2))
+    sigma_w = np.sqrt(np.einsum("nij,nj->ni", squares, np.asarray(sigma_rate) ** 2))
+    error = quaternion_to_rotation_vector(quaternion_multiply(q, quaternion_conjugate(q_true)))
+    return StateErrors(
+        attitude_deg=np.rad2deg(error),
+        rate_deg_s=np.rad2deg(omega - omega_true),
+        sigma_attitude_deg=sigma_att,
+        sigma_rate_deg_s=np.rad2deg(sigma_w),
+        rotations=rotations,
+        folded=folded,
+    )
+
+
+def _nearest_equivalent(
+    group: SymmetryGroup, q: np.ndarray, q_true: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per epoch, the equivalent ``s ⊗ q`` of ``q`` nearest ``q_true`` and its ``R = A(s)``.
+
+    Discrete elements are tried in turn; with a continuous axis ``a`` each candidate is
+    also turned about ``a`` by the angle that brings it nearest: with ``d = c ⊗ q_true⁻¹``
+    the scalar part of ``r ⊗ d``, ``r = [a sin(φ/2), cos(φ/2)]``, is
+    ``cos(φ/2) d4 − sin(φ/2) a·d_v``, largest in magnitude at ``(sin, cos) ∝ (−a·d_v, d4)``.
+    """
+    candidates = group.equivalent_attitudes(q)  # (G, N, 4)
+    if group.axis is not None:
+        d = quaternion_multiply(candidates, quaternion_conjugate(q_true)[None])
+        along = d[..., :3] @ group.axis
+        norm = np.hypot(along, d[..., 3])
+        safe = np.where(norm > 0, norm, 1.0)
+        sin = np.where(norm > 0, -along / safe, 0.0)
+        cos = np.where(norm > 0, d[..., 3] / safe, 1.0)
+        twist = np.concatenate([sin[..., None] * group.axis, cos[..., None]], axis=-1)
+        candidates = quaternion_multiply(twist, candidates)
+    d = quaternion_multiply(candidates, quaternion_conjugate(q_true)[None])
+    angle = 2 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
+    best = np.argmin(angle, axis=0)
+    picked = np.take_along_axis(candidates, best[None, :, None], axis=0)[0]
+    rotations = attitude_matrix(picked) @ np.swapaxes(attitude_matrix(q), -1, -2)
+    return picked, rotations
+
+
+def _group_label(result: InversionFolder) -> str | None:
+    """How the folding is named in the figure (None: not folded)."""
+    group = result.symmetry
+    if group is None or group.is_trivial:
+        return None
+    shape = result.summary.get("shape")
+    if group.axis is not None:
+        axis = ", ".join(f"{v:.3g}" for v in group.axis + 0.0)
+        return (
+            f"errors modulo the symmetry group of {shape} (rotations about body axis [{axis}], "
+            f"not counted, and {group.order} discrete ones)"
+        )
+    return f"errors modulo the symmetry group of {shape} ({group.order} rotations)"
+
+
 def state_figure(result: InversionFolder):
-    """Attitude error (or estimate) and rates with 3σ bands; truth when the input has it."""
+    """Attitude error (or estimate) and rates with 3σ bands; truth when the input has it.
+
+    The errors against the truth are taken modulo the shape's symmetry group
+    (:func:`state_errors`); the figure's title says so when the group is not trivial.
+    """
     plt = _pyplot()
     est = result.estimates
     t = _minutes(result)
@@ -135,18 +314,26 @@ def state_figure(result: InversionFolder):
     sig_att = est[["sigma_att_x", "sigma_att_y", "sigma_att_z"]].to_numpy()
     sig_w = np.rad2deg(est[["sigma_wx", "sigma_wy", "sigma_wz"]].to_numpy())
     truth = _truth(result)
-    fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
+    fig, axes = plt.subplots(3, 2, figsize=(11, 7.5), sharex=True)
+    label = None
     if truth is not None:
-        # Attitude error δq = q_est ⊗ q_true⁻¹ as a rotation vector (deg, body frame).
-        q_true_inv = truth[:, :4] * np.array([-1.0, -1.0, -1.0, 1.0])
-        error = np.rad2deg(quaternion_to_rotation_vector(quaternion_multiply(q, q_true_inv)))
-        rate_error = w - np.rad2deg(truth[:, 4:])
+        errors = state_errors(
+            q,
+            est[["wx", "wy", "wz"]].to_numpy(),
+            sig_att,
+            est[["sigma_wx", "sigma_wy", "sigma_wz"]].to_numpy(),
+            truth,
+            result.symmetry,
+        )
+        error, rate_error = errors.attitude_deg, errors.rate_deg_s
+        sig_att, sig_w = errors.sigma_attitude_deg, errors.sigma_rate_deg_s
+        label = _group_label(result)
     else:
         euler = np.rad2deg(quaternion_to_euler321(q))
     for k, axis in enumerate("xyz"):
         ax = axes[k, 0]
         if truth is not None:
-            ax.plot(t, error[:, k], color="C0", lw=1, label="error")
+            ax.plot(t, error[:, k], color="C0", lw=1, label="error mod G" if label else "error")
             ax.fill_between(
                 t, -3 * sig_att[:, k], 3 * sig_att[:, k], color="C0", alpha=0.2, label="±3σ"
             )
@@ -173,10 +360,23 @@ def state_figure(result: InversionFolder):
         ax.fill_between(
             t, center - 3 * sig_w[:, k], center + 3 * sig_w[:, k], color="C1", alpha=0.2
         )
-    axes[0, 0].set_title(
-        "attitude error with ±3σ" if truth is not None else "3-2-1 Euler angles with ±3σ (approx.)"
-    )
-    axes[0, 1].set_title("rate error with ±3σ" if truth is not None else "rates with ±3σ")
+    if truth is not None:
+        axes[0, 0].legend(loc="upper right", fontsize=8)
+        axes[0, 0].set_title(
+            "attitude error mod G with ±3σ" if label else "attitude error with ±3σ"
+        )
+        axes[0, 1].set_title(
+            "rate error of the equivalent state with ±3σ" if label else "rate error with ±3σ"
+        )
+        if label:
+            text = label + "; each epoch's estimate mapped to its equivalent nearest the truth"
+            fig.suptitle(textwrap.fill(text, 120), fontsize=9)
+        elif result.symmetry_problem:
+            text = f"errors not folded by symmetry: {result.symmetry_problem}"
+            fig.suptitle(textwrap.fill(text, 120), fontsize=9)
+    else:
+        axes[0, 0].set_title("3-2-1 Euler angles with ±3σ (approx.)")
+        axes[0, 1].set_title("rates with ±3σ")
     for ax in axes[-1]:
         ax.set_xlabel("minutes since first epoch")
     fig.tight_layout()
@@ -242,9 +442,14 @@ def modes_figure(result: InversionFolder):
     return fig
 
 
-def plot_result(path: str | Path, out_dir: str | Path | None = None) -> list[Path]:
-    """Write every figure of a result folder as PNG files; returns their paths."""
-    result = load_result(path)
+def plot_result(
+    path: str | Path, out_dir: str | Path | None = None, library: str | None = None
+) -> list[Path]:
+    """Write every figure of a result folder as PNG files; returns their paths.
+
+    ``library`` is the shape library of the inversion (for the shape's symmetry group).
+    """
+    result = load_result(path, library)
     out_dir = Path(out_dir) if out_dir is not None else result.path
     plt = _pyplot()
     written = []

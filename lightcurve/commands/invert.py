@@ -134,7 +134,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve.batch import run_batch
-    from lightcurve.pipeline import SUMMARY_KEYS, check_request, invert_file, resolve_shapes
+    from lightcurve.inversion import InversionOptions
+    from lightcurve.pipeline import (
+        SUMMARY_KEYS,
+        InvertJob,
+        check_request,
+        invert_file,
+        resolve_shapes,
+    )
 
     names = resolve_shapes(
         args.library, args.shape, args.shapes and args.shapes.split(","), args.all_shapes
@@ -142,31 +149,32 @@ def run(args: argparse.Namespace) -> int:
     if not args.workers > 0:
         raise ValueError(f"--workers must be positive, got {args.workers}")
     deg = np.deg2rad
-    options = {
-        "method": args.method,
-        "shape_names": names,
-        "library": args.library,
-        "q0": None if args.q0 is None else args.q0.tolist(),
-        "omega0_rad_s": None if args.omega0 is None else deg(args.omega0).tolist(),
-        "attitude_sigma_deg": args.attitude_sigma_deg,
-        "omega_sigma_rad_s": None if args.omega_sigma is None else float(deg(args.omega_sigma)),
-        "omega_max_rad_s": None if args.omega_max is None else float(deg(args.omega_max)),
-        "particles": args.particles,
-        "seed": args.seed,
-        "init": args.init,
-        "drop_bad_rows": args.drop_bad_rows,
-        "modes": args.modes,
-        "mode_weak_sigma_deg": args.mode_weak_sigma,
-    }
+    job = InvertJob(
+        method=args.method,
+        shape_names=None if names is None else tuple(names),
+        library=args.library,
+        q0=None if args.q0 is None else tuple(args.q0.tolist()),
+        omega0_rad_s=None if args.omega0 is None else tuple(deg(args.omega0).tolist()),
+        attitude_sigma_deg=args.attitude_sigma_deg,
+        omega_sigma_rad_s=None if args.omega_sigma is None else float(deg(args.omega_sigma)),
+        omega_max_rad_s=None if args.omega_max is None else float(deg(args.omega_max)),
+        particles=args.particles,
+        seed=args.seed,
+        modes=args.modes,
+        drop_bad_rows=args.drop_bad_rows,
+    )
+    # Options left unset keep the library's defaults.
+    tuning = {"init": args.init, "mode_weak_sigma_deg": args.mode_weak_sigma}
+    options = InversionOptions(**{k: v for k, v in tuning.items() if v is not None})
     # The library's own checks of the request, at start rather than once per input.
-    check_request(options)
+    check_request(job, options)
     template = dict.fromkeys(SUMMARY_KEYS)
     template.update(method=args.method, shape_probabilities={}, modes=[])
     table = run_batch(
         invert_file,
         args.inputs,
         args.out,
-        options=options,
+        options={"job": job, "options": options},
         overwrite=args.overwrite,
         workers=args.workers,
         scheduler=args.scheduler,

@@ -2,8 +2,10 @@
 
 Writes PNGs into the folder (or --out): light_curve.png (measured vs fitted with
 residuals), states.png (attitude and rate estimates with 3-sigma bands; errors against truth
-when the input has truth columns), probabilities.png (shape probabilities over time, for
-several candidate shapes) and modes.png (the particle filter's final attitude modes).
+when the input has truth columns, modulo the rotational symmetry group of the result's shape:
+each epoch's estimate is mapped to its symmetry-equivalent state nearest the truth),
+probabilities.png (shape probabilities over time, for several candidate shapes) and
+modes.png (the particle filter's final attitude modes).
 """
 
 from __future__ import annotations
@@ -25,11 +27,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="where to write the PNGs (default: the result folder; --out-dir is a deprecated "
         "spelling)",
     )
+    parser.add_argument(
+        "--library",
+        metavar="DIR",
+        help="shape library of the inversion, for the shape's symmetry group (default: "
+        "$LIGHTCURVE_LIBRARY or built-in)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from lightcurve.plots import plot_result
 
-    for path in plot_result(args.result, args.out):
+    for path in plot_result(args.result, args.out, args.library):
         print(path)
     return 0
