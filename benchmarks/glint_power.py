@@ -42,7 +42,7 @@ def fixed_geometry_curve(
 
     The glint detector reads only the magnitudes and their errors; the geometry columns are
     there to make the table a valid observation file (also used by
-    ``tests/lightcurve/test_glint.py``).
+    ``tests/lightcurve/analysis/test_glint.py``).
 
     Parameters
     ----------

@@ -44,7 +44,8 @@ def placeholder_geometry(
     """Rows at the given elevations with placeholder Sun/observer vectors (km).
 
     The noise models read only the elevation, the exposure and the site, so a table of
-    elevations is enough to exercise them (also used by ``tests/lightcurve/test_noise.py``).
+    elevations is enough to exercise them (also used by
+    ``tests/lightcurve/photometry/test_noise.py``).
 
     Parameters
     ----------

@@ -37,7 +37,7 @@ substep's end points (second-order Magnus) and exponentiated by
 :func:`~filters.attitude.transition_matrix`. ``Q_c = diag(0, q_ω I₃, 0)``: white angular
 acceleration noise of spectral density ``q_ω = rate_noise²`` (rad²/s³, unmodelled torques).
 The product over substeps is checked against the autograd Jacobian of the RK4 map in
-``tests/lightcurve/test_photometric_planning.py``.
+``tests/lightcurve/analysis/test_photometric_planning.py``.
 
 Example
 -------

@@ -72,7 +72,7 @@ def sun_position(mjd: np.ndarray) -> np.ndarray:
     astropy's built-in ephemeris (``get_body("sun")``: astrometric, light time included).
     For many epochs it is evaluated on the six-hour node grid of :mod:`lightcurve.sky.frames`
     and interpolated (cubic Lagrange, four nodes): the error is below 10 m, 10⁻¹⁰ of the
-    distance (``tests/lightcurve/test_frames.py``).
+    distance (``tests/lightcurve/sky/test_frames.py``).
 
     Parameters
     ----------

@@ -21,7 +21,7 @@ varying ``M_TG`` is interpolated with the cubic Lagrange polynomial through the 
 nodes, ``W`` and ``UT1 − TAI`` linearly (astropy interpolates the daily IERS pole
 coordinates and UT1 − UTC linearly, so this reproduces them), and the fast rotation ``θ`` is
 computed at every epoch from UT1 (``erfa.gmst82``). The rotations agree with astropy's own
-transformations at every epoch to a few 10⁻¹² rad (``tests/lightcurve/test_frames.py``).
+transformations at every epoch to a few 10⁻¹² rad (``tests/lightcurve/sky/test_frames.py``).
 """
 
 from __future__ import annotations

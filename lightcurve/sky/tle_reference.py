@@ -7,7 +7,7 @@ on its built-in time scale; that one knows UT1 but not the pole's position, so t
 coordinates bundled with astropy are handed to it — polar motion moves a geostationary
 satellite by up to 60 m in the ITRS (0.3″ seen from the ground).
 
-Used by ``tests/lightcurve/test_tle.py`` and ``benchmarks/tle_geometry.py``.
+Used by ``tests/lightcurve/sky/test_tle.py`` and ``benchmarks/tle_geometry.py``.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ the cosines, the BRDF, the clamps, the area, the optional shadow factor and the 
 (rows × facets) array. They evaluate the cosine forms of :mod:`brdf` (``docs/brdf.md``)
 with the same clamps and floors, rearranged only where a factor is constant over a row or
 where an algebraic identity removes a division (tested against :mod:`brdf` and
-:mod:`lightcurve.photometry.reference` in ``tests/lightcurve/test_kernels.py``):
+:mod:`lightcurve.photometry.reference` in ``tests/lightcurve/photometry/test_kernels.py``):
 
 * Lambert (Lambert 1760): ``ρ = rd/π``;
 * Phong, energy-normalised (Phong 1975; Lewis 1994):

@@ -23,10 +23,10 @@ One source serves both dtypes: the per-dtype algorithms (the polynomials and the
 ``2^k (1 + f)``) and limits form a ``_Precision`` record, from which ``_functions`` compiles
 the six functions once per dtype; ``overload`` picks the set by the argument's type.
 
-Accuracy (measured against numpy in extended precision, ``tests/lightcurve/test_kernels.py``):
-at most 1.3 ulp in float32 and float64, subnormal inputs and results included. Domains:
-``log``/``log2`` take finite ``x > 0``; ``exp``/``exp2`` return 0 below the subnormal range
-and ``inf`` above the largest finite number.
+Accuracy (measured against numpy in extended precision,
+``tests/lightcurve/photometry/test_kernels.py``): at most 1.3 ulp in float32 and float64,
+subnormal inputs and results included. Domains: ``log``/``log2`` take finite ``x > 0``;
+``exp``/``exp2`` return 0 below the subnormal range and ``inf`` above the largest finite number.
 
 The kernels use two cheaper forms on their own domains: :func:`log2_normal` (normal
 ``x > 0``: no subnormal rescaling) and :func:`exp2_normal` (``y ≤ 127`` in float32,

@@ -22,7 +22,7 @@ from lightcurve.sky.tle import (
 )
 from lightcurve.sky.tle_reference import compare_topocentric, skyfield_timescale
 
-CATALOGUE = Path(__file__).resolve().parents[2] / "data" / "tle" / "catalogue.tle"
+CATALOGUE = Path(__file__).resolve().parents[3] / "data" / "tle" / "catalogue.tle"
 ISS_LINES = (
     "1 25544U 98067A   18184.80969102  .00001614  00000-0  31745-4 0  9993",
     "2 25544  51.6414 295.8524 0003435 262.6267 204.2868 15.54005638121106",

@@ -10,7 +10,7 @@ from lightcurve import io
 from lightcurve.io.observations import TRUTH_COLUMNS, ObservationError, Observations, validate_table
 from tests.lightcurve._round_trip import assert_csv_parquet_round_trip
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 ARIADNE = ROOT / "data" / "ariadne" / "test_lcs_rel"
 
 HEADER = "# object: test-sat\n# frame: GCRS\n"

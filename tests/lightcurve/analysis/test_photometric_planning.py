@@ -23,7 +23,7 @@ from lightcurve import io
 from lightcurve.analysis.photometric_planning import PhotometricPlanningModel, compare_schedules
 from lightcurve.io.observations import Observations
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 GEOMETRY = ROOT / "data" / "geometry" / "geo_mount_lemmon.csv"
 SIGMA_MAG = 0.03
 

@@ -15,7 +15,7 @@ from lightcurve.sky.shadow_earth import (
 )
 from lightcurve.sky.tle import read_tles, select_object
 
-CATALOGUE = Path(__file__).resolve().parents[2] / "data" / "tle" / "catalogue.tle"
+CATALOGUE = Path(__file__).resolve().parents[3] / "data" / "tle" / "catalogue.tle"
 STEP_S = 10.0
 
 

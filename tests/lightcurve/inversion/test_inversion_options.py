@@ -16,7 +16,7 @@ from lightcurve.inversion import (
     validate_request,
 )
 
-SAMPLE = Path(__file__).resolve().parents[2] / "data" / "observations" / "box_wing_tumbling.csv"
+SAMPLE = Path(__file__).resolve().parents[3] / "data" / "observations" / "box_wing_tumbling.csv"
 Q0 = [0.2, -0.1, 0.3, 0.927]
 
 
