@@ -33,6 +33,7 @@ from scipy.spatial import cKDTree
 from filters.attitude import (
     attitude_angle,
     attitude_matrix,
+    quaternion_conjugate,
     quaternion_from_matrix,
     quaternion_multiply,
     quaternion_to_rotation_vector,
@@ -125,11 +126,43 @@ class SymmetryGroup:
         q_reference, q = np.broadcast_arrays(
             np.asarray(q_reference, dtype=float), np.asarray(q, dtype=float)
         )
+        return _nearest(q_reference, self.equivalent_attitudes(q))
+
+    def nearest_equivalent(self, q_reference: Any, q: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The state of the group's orbit of ``q`` nearest ``q_reference``, and its rotation.
+
+        As :meth:`closest`, and with a continuous axis ``a`` each discrete representative is
+        also turned about ``a`` by the angle that brings it nearest the reference: with
+        ``d = c ⊗ q_ref⁻¹`` the scalar part of ``r ⊗ d``, ``r = [a sin(φ/2), cos(φ/2)]``, is
+        ``cos(φ/2) d4 − sin(φ/2) a·d_v``, largest in magnitude at ``(sin, cos) ∝ (−a·d_v,
+        d4)``. The remaining angle is then :meth:`attitude_error`'s.
+
+        Parameters
+        ----------
+        q_reference, q : (..., 4) array
+
+        Returns
+        -------
+        q_equivalent : (..., 4) numpy.ndarray
+        rotation : (..., 3, 3) numpy.ndarray
+            Body-frame rotation ``R`` with ``A(q_equivalent) = R A(q)``; body rates and
+            body-frame errors of ``q`` map to those of ``q_equivalent`` by ``R``.
+        """
+        q_reference, q = np.broadcast_arrays(
+            np.asarray(q_reference, dtype=float), np.asarray(q, dtype=float)
+        )
         candidates = self.equivalent_attitudes(q)
-        angles = attitude_angle(q_reference[None], candidates)
-        index = np.argmin(angles, axis=0)
-        picked = np.take_along_axis(candidates, index[None, ..., None], axis=0)[0]
-        return picked, index
+        if self.axis is not None:
+            d = quaternion_multiply(candidates, quaternion_conjugate(q_reference)[None])
+            along = d[..., :3] @ self.axis
+            norm = np.hypot(along, d[..., 3])
+            safe = np.where(norm > 0, norm, 1.0)
+            sin = np.where(norm > 0, -along / safe, 0.0)
+            cos = np.where(norm > 0, d[..., 3] / safe, 1.0)
+            twist = np.concatenate([sin[..., None] * self.axis, cos[..., None]], axis=-1)
+            candidates = quaternion_multiply(twist, candidates)
+        picked, _ = _nearest(q_reference, candidates)
+        return picked, attitude_matrix(picked) @ np.swapaxes(attitude_matrix(q), -1, -2)
 
     def attitude_error(self, q_estimate: Any, q_true: Any) -> np.ndarray:
         """Attitude error (rad) modulo the group.
@@ -453,3 +486,10 @@ def _continuous_axis(rotations: np.ndarray, continuous_order: int) -> np.ndarray
         if same.sum() + 1 >= continuous_order:
             return axis * np.sign(axis[np.argmax(np.abs(axis))])
     return None
+
+
+def _nearest(q_reference: np.ndarray, candidates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The candidate ``(G, ..., 4)`` nearest ``q_reference`` at every index, and which."""
+    angles = attitude_angle(q_reference[None], candidates)
+    index = np.argmin(angles, axis=0)
+    return np.take_along_axis(candidates, index[None, ..., None], axis=0)[0], index

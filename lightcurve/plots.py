@@ -206,13 +206,13 @@ def state_errors(
     """Attitude and rate errors against the truth modulo a symmetry group.
 
     At each epoch the estimate ``(q̂, ω̂)`` is replaced by the symmetry-equivalent state
-    ``(s ⊗ q̂, R ω̂)`` whose attitude is nearest the truth (:func:`_nearest_equivalent`; for
-    a continuous axis the rotation about it is chosen too, so the error has no component
-    along the axis). The element is chosen per epoch, as
-    :meth:`~filters.symmetry.SymmetryGroup.attitude_error` (and the summary figures of
-    ``docs/inversion.md``) do: equivalent states fit every measurement alike, so a filter
-    whose leading hypothesis passes from one to another has made no error. The norm of the
-    attitude error is ``group.attitude_error(q̂, q)``.
+    ``(s ⊗ q̂, R ω̂)`` whose attitude is nearest the truth
+    (:meth:`~filters.symmetry.SymmetryGroup.nearest_equivalent`; for a continuous axis the
+    rotation about it is chosen too, so the error has no component along the axis). The
+    element is chosen per epoch, as :meth:`~filters.symmetry.SymmetryGroup.attitude_error`
+    (and the summary figures of ``docs/inversion.md``) do: equivalent states fit every
+    measurement alike, so a filter whose leading hypothesis passes from one to another has
+    made no error. The norm of the attitude error is ``group.attitude_error(q̂, q)``.
 
     Parameters
     ----------
@@ -239,7 +239,7 @@ def state_errors(
     q_true, omega_true = truth[:, :4], truth[:, 4:7]
     folded = group is not None and not group.is_trivial
     if folded:
-        q, rotations = _nearest_equivalent(group, q, q_true)
+        q, rotations = group.nearest_equivalent(q_true, q)
         omega = np.einsum("nij,nj->ni", rotations, omega)
     else:
         rotations = np.broadcast_to(np.eye(3), (len(q), 3, 3)).copy()
@@ -255,34 +255,6 @@ def state_errors(
         rotations=rotations,
         folded=folded,
     )
-
-
-def _nearest_equivalent(
-    group: SymmetryGroup, q: np.ndarray, q_true: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per epoch, the equivalent ``s ⊗ q`` of ``q`` nearest ``q_true`` and its ``R = A(s)``.
-
-    Discrete elements are tried in turn; with a continuous axis ``a`` each candidate is
-    also turned about ``a`` by the angle that brings it nearest: with ``d = c ⊗ q_true⁻¹``
-    the scalar part of ``r ⊗ d``, ``r = [a sin(φ/2), cos(φ/2)]``, is
-    ``cos(φ/2) d4 − sin(φ/2) a·d_v``, largest in magnitude at ``(sin, cos) ∝ (−a·d_v, d4)``.
-    """
-    candidates = group.equivalent_attitudes(q)  # (G, N, 4)
-    if group.axis is not None:
-        d = quaternion_multiply(candidates, quaternion_conjugate(q_true)[None])
-        along = d[..., :3] @ group.axis
-        norm = np.hypot(along, d[..., 3])
-        safe = np.where(norm > 0, norm, 1.0)
-        sin = np.where(norm > 0, -along / safe, 0.0)
-        cos = np.where(norm > 0, d[..., 3] / safe, 1.0)
-        twist = np.concatenate([sin[..., None] * group.axis, cos[..., None]], axis=-1)
-        candidates = quaternion_multiply(twist, candidates)
-    d = quaternion_multiply(candidates, quaternion_conjugate(q_true)[None])
-    angle = 2 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
-    best = np.argmin(angle, axis=0)
-    picked = np.take_along_axis(candidates, best[None, :, None], axis=0)[0]
-    rotations = attitude_matrix(picked) @ np.swapaxes(attitude_matrix(q), -1, -2)
-    return picked, rotations
 
 
 def _group_label(result: InversionFolder) -> str | None:

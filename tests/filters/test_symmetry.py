@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from filters.attitude import (
     attitude_angle,
+    attitude_matrix,
     axis_angle_to_quaternion,
     quaternion_from_matrix,
     quaternion_multiply,
@@ -137,6 +138,23 @@ def test_continuous_axis_error_ignores_rotations_about_the_axis():
     assert float(group.attitude_error(spun, q)) < 1e-7
     tilted = quaternion_multiply(axis_angle_to_quaternion(np.cross(group.axis, [1, 0, 0]), 0.2), q)
     assert math.isclose(float(group.attitude_error(tilted, q)), 0.2, abs_tol=1e-9)
+
+
+def test_nearest_equivalent_attains_the_error_modulo_the_group():
+    rng = np.random.default_rng(11)
+    q = random_quaternion((20,), rng)
+    reference = random_quaternion((20,), rng)
+    for name in ("box", "cube", "rocket_body"):
+        group = _group(name)
+        picked, rotation = group.nearest_equivalent(reference, q)
+        error = group.attitude_error(picked, reference)
+        # the picked state is the group's image of q, its angle to the reference is the error
+        assert np.allclose(error, group.attitude_error(q, reference), atol=1e-9)
+        assert np.allclose(attitude_angle(picked, reference), error, atol=1e-7)
+        assert np.allclose(rotation @ attitude_matrix(q), attitude_matrix(picked), atol=1e-12)
+        if group.axis is None:
+            closest, _ = group.closest(reference, q)
+            assert np.allclose(np.abs(np.sum(closest * picked, axis=-1)), 1.0, atol=1e-12)
 
 
 def test_equivalent_rates_follow_the_rotation():
