@@ -151,10 +151,10 @@ def run(args: argparse.Namespace) -> int:
     deg = np.deg2rad
     job = InvertJob(
         method=args.method,
-        shape_names=None if names is None else tuple(names),
+        shape_names=names,
         library=args.library,
-        q0=None if args.q0 is None else tuple(args.q0.tolist()),
-        omega0_rad_s=None if args.omega0 is None else tuple(deg(args.omega0).tolist()),
+        q0=args.q0,
+        omega0_rad_s=None if args.omega0 is None else deg(args.omega0),
         attitude_sigma_deg=args.attitude_sigma_deg,
         omega_sigma_rad_s=None if args.omega_sigma is None else float(deg(args.omega_sigma)),
         omega_max_rad_s=None if args.omega_max is None else float(deg(args.omega_max)),
