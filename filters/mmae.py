@@ -36,6 +36,20 @@ the residuals normalised by the measurement variance only, ``ν²/R``, and a mod
 windowed mean exceeds ``residual_factor`` times the same bound (default 4: an RMS misfit
 of twice the measurement errors) does not fit either.
 
+**Model error** (``adaptive=True``). A candidate that is close to the object but not exact
+(dimensions, materials, mass distribution) predicts every measurement with an error the
+measurement variance ``R`` does not hold; its filter then grows over-confident and its gate
+rejects most of the data. Each model keeps a model-error variance ``σ_m²`` estimated by
+covariance matching over the last ``W`` innovations of its heaviest hypothesis (Mehra 1970;
+Mohamed & Schwarz 1999): a consistent filter has ``E[ν²] = S = S_x + R + σ_m²``, so
+
+``σ_m² = max(0, mean(ν² − S_x) − mean(R))``,
+
+and every update of the model uses ``R + σ_m²``. Each sample is capped at ``nis_cap`` times
+its ``S`` (a glint does not inflate the variance), gated measurements included (a model
+that rejects everything still learns its error). The consistency windows keep testing
+against the measurement variance alone.
+
 **Diverged filters.** A hypothesis whose filter diverges (:attr:`AttitudeUKF.divergence`)
 gets weight zero; a model whose every hypothesis has diverged is dropped: probability 0
 (below the floor: a filter that cannot be evaluated has no likelihood to recover with),
@@ -52,6 +66,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import fields
 from typing import Any
@@ -99,6 +114,8 @@ class MultipleModelBank:
         NIS values (and ``ν²/R``) are capped at this in the windows.
     residual_factor : float
         A model also fails when its windowed mean ``ν²/R`` exceeds this times the bound.
+    adaptive : bool
+        Estimate each model's model-error variance (see the module notes).
 
     Attributes
     ----------
@@ -121,6 +138,7 @@ class MultipleModelBank:
         level: float = 0.99,
         nis_cap: float = 25.0,
         residual_factor: float = 4.0,
+        adaptive: bool = False,
     ) -> None:
         if len(filters) != len(names) or not filters:
             raise ValueError("one filter per model name, at least one")
@@ -152,6 +170,11 @@ class MultipleModelBank:
         self._nis = [NISWindow(self.window, level, self.nis_cap) for _ in filters]
         self._misfit = [NISWindow(self.window, level, self.nis_cap) for _ in filters]
         self.bound = self._nis[0].bound
+        self.adaptive = bool(adaptive)
+        self._matching: list[deque[tuple[float, float]]] = [
+            deque(maxlen=self.window) for _ in filters
+        ]
+        self.model_variance = np.zeros(len(filters))
 
     def __len__(self) -> int:
         return len(self.members)
@@ -253,7 +276,11 @@ class MultipleModelBank:
         """
         leaders = [self.leader(j) for j in range(len(self))]
         stacked = self._stacked(hx)
-        result = self.ukf.update(z, r, stacked) if use else self.ukf.evaluate(z, r, stacked)
+        r_total = r + self.model_variance[self._model]
+        if use:
+            result = self.ukf.update(z, r_total, stacked)
+        else:
+            result = self.ukf.evaluate(z, r_total, stacked)
         results = [_members(result, s) for s in self.members]
         if not use:
             return results
@@ -277,7 +304,28 @@ class MultipleModelBank:
             if alive and math.isfinite(nis):
                 window.add(nis)
                 misfit.add(float(res.innovation[lead]) ** 2 / r)
+        if self.adaptive:
+            self._match(results, leaders, r)
         return results
+
+    def _match(self, results: Sequence[UpdateResult], leaders: Sequence[int], r: float) -> None:
+        """Covariance matching of every live model's model-error variance (module notes)."""
+        for j, (res, lead) in enumerate(zip(results, leaders, strict=True)):
+            s, nu = float(res.variance[lead]), float(res.innovation[lead])
+            if not (self.alive[j] and math.isfinite(s) and math.isfinite(nu)):
+                continue
+            s_state = s - r - self.model_variance[j]
+            self._matching[j].append((min(nu * nu, self.nis_cap * s) - s_state, r))
+            if len(self._matching[j]) < min(10, self.window):
+                continue
+            excess, measured = np.mean(np.asarray(self._matching[j]), axis=0)
+            self.model_variance[j] = max(0.0, float(excess - measured))
+
+    @property
+    def model_error(self) -> np.ndarray:
+        """Each model's estimated model-error 1σ ``σ_m`` (units of the measurement; zero
+        without ``adaptive``)."""
+        return np.sqrt(self.model_variance)
 
     def evaluate(self, z: float, r: float, hx: Measurement, model: int) -> UpdateResult:
         """Innovation statistics of one model's hypotheses for a measurement, without using

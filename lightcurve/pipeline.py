@@ -49,6 +49,10 @@ SUMMARY_KEYS = (
     "omega_sigma_rad_s",
     "modes",
     "residual_rms_mag",
+    "model_error_mag",
+    "rejected_fraction",
+    "consistent",
+    "parameters",
     "n_measurements",
     "runtime_s",
     "attitude_mode",
@@ -263,6 +267,13 @@ def invert_file(
             for mode in result.modes
         ],
         "residual_rms_mag": float(result.residual_rms_mag),
+        "model_error_mag": float(result.model_error_mag),
+        "rejected_fraction": float(result.rejected_fraction),
+        "consistent": not bool(result.none_fits),
+        "parameters": {
+            name: {"value": float(v["value"]), "sigma": float(v["sigma"])}
+            for name, v in result.parameters.items()
+        },
         "n_measurements": int(result.n_measurements),
         "dropped_rows": len(observations.dropped),
         "notes": list(getattr(result, "notes", [])),

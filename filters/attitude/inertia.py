@@ -224,13 +224,16 @@ def inertia_from_tanh(k: Any) -> Any:
     )
 
 
-def tanh_from_inertia(inertia: Any) -> Any:
+def tanh_from_inertia(inertia: Any, margin: float = 0.0) -> Any:
     """Tanh parameters ``k = [atanh(py), −atanh(px)]`` of a principal-axis inertia.
 
     Parameters
     ----------
     inertia : (..., 3) or (..., 3, 3) array
         Principal moments, or a diagonal tensor in its principal frame.
+    margin : float
+        With ``margin > 0`` the ratios are clipped to ``[−1 + margin, 1 − margin]`` instead
+        of raising: the nearest tanh form of a degenerate (plate-like) body.
 
     Returns
     -------
@@ -249,6 +252,8 @@ def tanh_from_inertia(inertia: Any) -> Any:
         if np.max(np.abs(off)) > 1e-12 * np.max(np.abs(j)):
             raise InertiaError("tanh form needs a principal-axis (diagonal) inertia tensor")
     p = inertia_ratios(j)
+    if margin > 0:
+        p = xp.clip(p, -1.0 + margin, 1.0 - margin)
     if isinstance(p, np.ndarray) and not np.all(np.abs(p[..., :2]) < 1):
         raise InertiaError(
             f"inertia ratios {p.tolist()} are not inside (-1, 1): the triangle inequalities "

@@ -20,6 +20,7 @@ from filters.attitude import (
     quaternion_to_rotation_vector,
     ratios_from_tanh,
     rotation_vector_to_quaternion,
+    tanh_from_inertia,
     torque_free_trajectory,
 )
 
@@ -113,6 +114,19 @@ class BatchProblem:
         ``k`` are estimated (``J = P diag(J(k)) Pᵀ``).
     estimate_inertia : bool
         Add the tanh parameters ``k = [k1, k2]`` (Feng et al.) to the unknowns.
+    inertia_sigma : float
+        With ``estimate_inertia``: 1σ of a Gaussian prior on ``k`` about each shape's own
+        value (its mesh's inertia), whose whitened deviations join the residuals, and the
+        candidates start at that value. ``inf`` (default): no prior, and the candidates'
+        ``k`` are searched uniformly (an inertia not known at all). Without a prior, ``k``
+        is free to run along the directions a short window does not constrain (values of
+        10⁴ were seen), where ``tanh`` saturates at the most extreme inertia.
+    free_offset : bool
+        The measurements carry an unknown common offset (a magnitude offset: the
+        albedo–area scale of a candidate that is not exactly the object). It is profiled
+        out: every candidate's residuals are those at its best offset, the projection
+        ``r ← r − u (uᵀr)/(uᵀu)``, ``u = 1/σ`` (a linear nuisance parameter eliminated
+        exactly, Golub & Pereyra 1973), and so are the data rows of the Jacobian.
     max_step : float
         Largest RK4 step of the propagation (s). RK4's error per step on a rotation by
         ``θ = |ω| h`` is about ``θ⁵/3840`` rad: 1.4·10⁻⁶ rad at 5°/s and 4 s, 0.01° over
@@ -128,6 +142,8 @@ class BatchProblem:
     inertias: Sequence[np.ndarray]
     principal_axes: Sequence[np.ndarray] | None = None
     estimate_inertia: bool = False
+    inertia_sigma: float = math.inf
+    free_offset: bool = False
     max_step: float = 4.0
     dtype: torch.dtype = torch.float64
     _principal: PrincipalInertia = field(init=False, repr=False)
@@ -142,6 +158,23 @@ class BatchProblem:
         self._principal = PrincipalInertia.from_inertia(np.stack(self.inertias))
         axes = self.principal_axes or [np.eye(3)] * len(self.inertias)
         self._tanh_frames = PrincipalInertia.from_tanh(np.zeros(2), np.stack(axes))
+
+    @property
+    def k_mean(self) -> np.ndarray:
+        """Tanh parameters of every shape's own inertia, shape (S, 2) (a plate-like
+        inertia's nearest tanh form)."""
+        moments = np.sort(np.linalg.eigvalsh(np.stack(self.inertias)), axis=-1)
+        return tanh_from_inertia(moments, margin=1e-6)
+
+    @property
+    def has_inertia_prior(self) -> bool:
+        """``k`` is estimated under a prior (finite ``inertia_sigma``)."""
+        return self.estimate_inertia and math.isfinite(self.inertia_sigma)
+
+    def inertia_residuals(self, k: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
+        """Whitened prior deviations ``(k − k̄_shape)/σ_k``, shape (N, 2)."""
+        mean = torch.as_tensor(self.k_mean, dtype=k.dtype)[shape]
+        return (k - mean) / self.inertia_sigma
 
     @property
     def n_params(self) -> int:
@@ -203,8 +236,21 @@ class BatchProblem:
     def residuals(
         self, q0: torch.Tensor, omega0: torch.Tensor, k: Any, shape: torch.Tensor, epochs: Any
     ) -> torch.Tensor:
-        """Normalised residuals of initial states, shape (N, E)."""
-        return self.residuals_of(self.trajectory(q0, omega0, k, shape, epochs), shape, epochs)
+        """Normalised residuals of initial states (offset profiled out with
+        ``free_offset``), shape (N, E)."""
+        r = self.residuals_of(self.trajectory(q0, omega0, k, shape, epochs), shape, epochs)
+        return self.profiled(r, epochs)
+
+    def profiled(self, values: torch.Tensor, epochs: Any) -> torch.Tensor:
+        """Residuals ``(N, E)`` or Jacobian rows ``(N, E, p)`` of the measurements
+        ``epochs`` with the common offset profiled out (unchanged without
+        ``free_offset``)."""
+        if not self.free_offset:
+            return values
+        u = torch.as_tensor(1.0 / self.sigma[np.asarray(epochs)], dtype=values.dtype)
+        if values.dim() == 2:
+            return values - u * ((values @ u) / (u @ u))[:, None]
+        return values - u[:, None] * (torch.einsum("nep,e->np", values, u) / (u @ u))[:, None]
 
 
 @dataclass

@@ -107,7 +107,9 @@ def _residuals(
 ) -> torch.Tensor:
     """Normalised residuals of a trajectory ``(N, E, 4)`` (with the prior's whitened
     deviations of ``q0``, ``ω`` appended), shape (N, E[+6])."""
-    r = problem.residuals_of(trajectory, shape, epochs)
+    r = problem.profiled(problem.residuals_of(trajectory, shape, epochs), epochs)
+    if problem.has_inertia_prior:
+        r = torch.cat([r, problem.inertia_residuals(v[:, 3:5], shape)], dim=1)
     if prior is None:
         return r
     return torch.cat([r, prior.residuals(q0, v[:, :3])], dim=1)
@@ -148,7 +150,11 @@ def _jacobian(
     rate_rotations = 2.0 * (q4 * dv - d4 * qv + torch.linalg.cross(dv, qv.expand_as(dv)))
     rotations = torch.cat([attitude_rotations, rate_rotations], dim=1)
     gradient = _rotation_differences(problem, base, shape, epochs)
-    jac = torch.einsum("nje,npej->nep", gradient, rotations)
+    jac = problem.profiled(torch.einsum("nje,npej->nep", gradient, rotations), epochs)
+    if problem.has_inertia_prior:
+        rows = torch.zeros((2, d + 3), dtype=v.dtype)
+        rows[0, 6] = rows[1, 7] = 1.0 / problem.inertia_sigma
+        jac = torch.cat([jac, rows.expand(m, 2, d + 3)], dim=1)
     if prior is None:
         return jac
     root = torch.sqrt(prior.information(d + 3)[:6]).to(v.dtype)

@@ -100,7 +100,9 @@ def uniform_candidates(
     q, w, u = low_discrepancy_states(n, omega_max, rng, extra)
     shape = torch.as_tensor(np.minimum((u[:, 0] * n_shapes).astype(int), n_shapes - 1))
     k = None
-    if problem.estimate_inertia:
+    if problem.has_inertia_prior:  # each shape's own inertia: the prior's mean
+        k = torch.as_tensor(problem.k_mean[shape.numpy()], dtype=problem.dtype)
+    elif problem.estimate_inertia:
         k = torch.as_tensor(k_range * (2.0 * u[:, 1:3] - 1.0), dtype=problem.dtype)
     return Candidates(
         q=torch.as_tensor(q, dtype=problem.dtype),
@@ -124,8 +126,13 @@ def prior_candidates(
     rows = len(shapes) * n
     kk = None
     if problem.estimate_inertia:
-        k0 = np.zeros(2) if k is None else np.asarray(k, float)
-        kk = torch.as_tensor(np.broadcast_to(k0, (rows, 2)).copy(), dtype=problem.dtype)
+        if k is not None:
+            k0 = np.broadcast_to(np.asarray(k, float), (rows, 2))
+        elif problem.has_inertia_prior:
+            k0 = problem.k_mean[np.repeat(np.asarray(shapes), n)]
+        else:
+            k0 = np.zeros((rows, 2))
+        kk = torch.as_tensor(np.array(k0), dtype=problem.dtype)
     return Candidates(
         q=torch.as_tensor(np.tile(q, (len(shapes), 1)), dtype=problem.dtype),
         omega=torch.as_tensor(np.tile(w, (len(shapes), 1)), dtype=problem.dtype),

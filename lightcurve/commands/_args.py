@@ -64,6 +64,17 @@ def positive_int(text: str) -> int:
 QUATERNION_NORM_TOLERANCE = 0.01
 
 
+def adjustment_list(text: str) -> tuple[str, ...]:
+    """``--estimate``: comma-separated model adjustments, or ``none`` (the names are checked
+    with the rest of the request, see :class:`lightcurve.inversion.InversionOptions`)."""
+    if text.strip().lower() == "none":
+        return ()
+    names = tuple(dict.fromkeys(part.strip() for part in text.split(",") if part.strip()))
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected adjustments or 'none', got {text!r}")
+    return names
+
+
 def unit_quaternion(text: str) -> np.ndarray:
     """Argparse type for a unit quaternion ``q1,q2,q3,q4`` (scalar last).
 

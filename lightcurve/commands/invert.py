@@ -12,10 +12,14 @@ makes that input an error.
 
 The batch is resumable: inputs whose summary says "ok" are skipped unless --overwrite; all
 outputs are written atomically and a bad input is recorded as an error without stopping
-the batch. --modes adds the attitude mode (stabilised profile or tumbling, its probability
-and the fitted offsets; docs/inversion.md). --workers runs inputs in parallel processes;
---scheduler sends the same work to a Dask distributed cluster (workers must see the same
-file system).
+the batch. --estimate chooses the model adjustments (inertia, principal-axis tilt,
+albedo-area scale, stretch, materials) fitted with the state on the whole arc by ukf and
+mmae; summary.json then holds them under 'parameters' with their 1-sigma, the rms model
+error ('model_error_mag'), the fraction of measurements the filters' gate rejected and
+whether the candidate is consistent with the data. --modes adds the attitude mode
+(stabilised profile or tumbling, its probability and the fitted offsets;
+docs/inversion.md). --workers runs inputs in parallel processes; --scheduler sends the
+same work to a Dask distributed cluster (workers must see the same file system).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import numpy as np
 
 from lightcurve.commands._args import (
     add_progress_option,
+    adjustment_list,
     float_vector,
     show_progress,
     unit_quaternion,
@@ -113,6 +118,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "reported as a weak axis with its 95%% interval, deg (default: 1)",
     )
     parser.add_argument(
+        "--estimate",
+        type=adjustment_list,
+        metavar="LIST",
+        help="ukf, mmae: model adjustments fitted with the state on the whole arc, "
+        "comma-separated from inertia, tilt, scale, stretch, material, or 'none' (default: "
+        "inertia,scale); summary key 'parameters' holds them with 1-sigma",
+    )
+    parser.add_argument(
+        "--model-tolerance",
+        type=float,
+        metavar="MAG",
+        help="ukf, mmae: rms model error (mag, beyond the measurement errors) above which a "
+        "candidate does not fit (default: 0.05)",
+    )
+    parser.add_argument(
         "--particles", type=int, metavar="N", help="particle count (pf) (default: 2000)"
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed")
@@ -164,7 +184,12 @@ def run(args: argparse.Namespace) -> int:
         drop_bad_rows=args.drop_bad_rows,
     )
     # Options left unset keep the library's defaults.
-    tuning = {"init": args.init, "mode_weak_sigma_deg": args.mode_weak_sigma}
+    tuning = {
+        "init": args.init,
+        "mode_weak_sigma_deg": args.mode_weak_sigma,
+        "estimate": args.estimate,
+        "model_tolerance_mag": args.model_tolerance,
+    }
     options = InversionOptions(**{k: v for k, v in tuning.items() if v is not None})
     # The library's own checks of the request, at start rather than once per input.
     check_request(job, options)

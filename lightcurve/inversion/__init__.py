@@ -8,11 +8,15 @@ estimators (``docs/inversion.md`` has the equations and measured figures):
     One shape. A batch maximum-a-posteriori fit of the initial state on the first part
     of the data (:mod:`filters.global_search`: prior-centred screening and batched
     Levenberg–Marquardt; uniform on SO(3) without ``q0``), then the USQUE attitude UKF
-    (:mod:`filters.ukf`) on the rest.
+    (:mod:`filters.ukf`) on the rest, its measurement variance widened by the model error
+    it estimates online; then its hypotheses refitted on the whole arc together with the
+    model adjustments of ``estimate`` (inertia, tilt of the principal axes, albedo–area
+    scale, stretch, materials: :class:`~lightcurve.photometry.adjusted.AdjustableShape`).
 ``"mmae"``
     Several shapes: the same initial fit per shape, then a bank of UKFs with model
-    probabilities, the fused attitude and a consistency test that reports ``none_fits``
-    (:mod:`filters.mmae`).
+    probabilities, the fused attitude and a consistency test (:mod:`filters.mmae`); the
+    same whole-arc refit of every shape, weighed by its Laplace evidence, reports the
+    shape, the adjustments and ``none_fits`` (no shape within ``model_tolerance_mag``).
 ``"pf"``
     One or several shapes, with or without a prior: global search of the initial state
     (uniform on SO(3), rates in a ball, shape index per candidate), particles seeded
@@ -27,7 +31,9 @@ of per-epoch estimates.
 Modules: ``options`` (:class:`InversionOptions`, which options each method reads,
 :func:`validate_request`), ``context`` (what one run shares, input checks), ``search`` (the
 initial-state search), ``epochs`` (the per-epoch filtering loop and its table rows),
-``bank`` (UKF/MMAE), ``particles`` (PF), ``polish`` (PF modes refined on the whole arc),
+``bank`` (UKF/MMAE), ``model_fit`` (state and model adjustments fitted on the whole arc),
+``refit`` (the UKF/MMAE hypotheses refitted with it, the shapes weighed), ``particles``
+(PF), ``polish`` (PF modes refined on the whole arc),
 ``result`` (:class:`InversionResult`) and ``driver`` (:func:`invert` and :data:`RUNNERS`,
 the table of methods).
 

@@ -20,6 +20,7 @@ from filters.mmae import MultipleModelBank
 from filters.ukf import AttitudeUKF, ProcessNoise, default_gate, torque_free_dynamics
 from lightcurve.inversion.context import Context, capped, subset, symmetry_note
 from lightcurve.inversion.epochs import EpochEstimate, filter_epochs
+from lightcurve.inversion.refit import refit_arc
 from lightcurve.inversion.result import InversionResult, make_result
 from lightcurve.inversion.search import initial_search
 
@@ -53,7 +54,7 @@ def _ukf_for_shape(
     k_index = offset_index = None
     if opt.estimate_inertia:
         k_index = (0, 1)
-        params += list(tanh_from_inertia(np.diag(shape.principal_moments)))
+        params += list(tanh_from_inertia(np.diag(shape.principal_moments), margin=1e-6))
         variances += [opt.inertia_sigma**2] * 2
     if opt.estimate_offset:
         offset_index = len(params)
@@ -154,6 +155,7 @@ def run_bank(ctx: Context) -> InversionResult:
         floor=opt.probability_floor if model.n_shapes > 1 else 0.0,
         window=opt.consistency_window,
         level=opt.consistency_level,
+        adaptive=opt.adaptive_noise,
     )
     times, z, r = model.times, model.magnitudes, model.errors**2
     fit_end = max(st.fit_end for st in setups)
@@ -182,8 +184,16 @@ def run_bank(ctx: Context) -> InversionResult:
     note = symmetry_note(name, group)
     if note:
         ctx.notes.append(note)
+    rejected = gated_count / len(times)
     if gated_count:
-        ctx.notes.append(f"{gated_count} measurement(s) rejected by the innovation gate")
+        ctx.notes.append(
+            f"{gated_count} measurement(s) ({100 * rejected:.1f} %) rejected by the innovation gate"
+        )
+    if opt.adaptive_noise:
+        ctx.notes.append(
+            "model error estimated by the filters (rms, mag): "
+            + ", ".join(f"{m} {e:.3f}" for m, e in zip(ctx.names, bank.model_error, strict=True))
+        )
     for j, name_j in enumerate(ctx.names):
         lost = int(bank.ukf.diverged[bank.members[j]].sum())
         if name_j in bank.dropped:
@@ -214,24 +224,39 @@ def run_bank(ctx: Context) -> InversionResult:
     parameters = {}
     st = setups[best]
     theta = bank.parameters(best)
+    sigma = np.sqrt(np.clip(np.diag(bank.estimate(best)[2])[6:], 0.0, None))
     if st.k_index is not None:
-        parameters["k1"], parameters["k2"] = (float(v) for v in theta[:2])
+        for i, key in enumerate(("k1", "k2")):
+            parameters[key] = {"value": float(theta[i]), "sigma": float(sigma[i])}
     if st.offset_index is not None:
-        parameters["magnitude_offset"] = float(theta[st.offset_index])
+        i = st.offset_index
+        parameters["magnitude_offset"] = {"value": float(theta[i]), "sigma": float(sigma[i])}
     if bank.hypotheses(best) > 1:
         weights = np.exp(bank.log_weights[best])
         ctx.notes.append(
             f"{name}: heaviest of {len(st.ukf)} hypotheses carries {weights.max():.3f}"
         )
-    return make_result(
-        ctx,
-        name=name,
-        probabilities=bank.probabilities,
-        none_fits=bank.none_fits,
-        q=q,
-        omega=omega,
-        covariance=cov,
-        estimates=estimates,
-        parameters=parameters,
-        group=group,
-    )
+    result_fields = {
+        "name": name,
+        "probabilities": bank.probabilities,
+        "none_fits": bank.none_fits,
+        "q": q,
+        "omega": omega,
+        "covariance": cov,
+        "parameters": parameters,
+        "group": group,
+    }
+    model_error = float(bank.model_error[best])
+    residual_rms = None
+    if opt.polish:
+        ctx.report(0.9, "whole-arc fit")
+        refit = refit_arc(ctx, bank, found)
+        result_fields.update(refit.fields(ctx))
+        estimates = refit.table(ctx, estimates)
+        model_error, residual_rms = refit.model_error_mag, refit.residual_rms
+    result = make_result(ctx, estimates=estimates, **result_fields)
+    result.rejected_fraction = rejected
+    result.model_error_mag = model_error
+    if residual_rms is not None:
+        result.residual_rms_mag = residual_rms
+    return result

@@ -5,6 +5,7 @@ random generator, the notes and the shapes' symmetry groups; and the checks of t
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -167,8 +168,17 @@ class Context:
         return self.model.names
 
     def problem(self) -> BatchProblem:
-        """The batch problem of the measurements (:func:`batch_problem`)."""
-        return batch_problem(self.model, self.options.estimate_inertia)
+        """The batch problem of the measurements (:func:`batch_problem`); the UKF/MMAE
+        search estimates the inertia under the filters' prior about each shape's own
+        (``inertia_sigma``), the PF's searches it uniformly."""
+        if self.method == "pf":
+            return batch_problem(self.model, self.options.estimate_inertia)
+        return batch_problem(
+            self.model,
+            self.options.estimate_inertia,
+            self.options.inertia_sigma,
+            free_offset="scale" in self.options.estimate,
+        )
 
     def windows(self, longest: float, growth: float = 2.0) -> tuple[float, ...]:
         """Growing fit windows (s): 30 s, growing ``growth``-fold, up to ``longest``."""
@@ -178,9 +188,16 @@ class Context:
         return (*windows, longest)
 
 
-def batch_problem(model: PhotometricModel, estimate_inertia: bool = False) -> BatchProblem:
+def batch_problem(
+    model: PhotometricModel,
+    estimate_inertia: bool = False,
+    inertia_sigma: float = math.inf,
+    free_offset: bool = False,
+) -> BatchProblem:
     """The torque-free batch problem (:class:`filters.global_search.BatchProblem`) of a
-    photometric model's measurements and shapes."""
+    photometric model's measurements and shapes (``inertia_sigma``: 1σ of the prior on the
+    tanh inertia parameters about each shape's own; ``free_offset``: a common magnitude
+    offset profiled out; see there)."""
 
     def measure(q: torch.Tensor, epochs: np.ndarray, shape: torch.Tensor) -> torch.Tensor:
         return model.magnitude_by_shape(q.to(model.dtype), epochs, shape).to(torch.float64)
@@ -194,6 +211,8 @@ def batch_problem(model: PhotometricModel, estimate_inertia: bool = False) -> Ba
         [s.inertia for s in shapes],
         principal_axes=[s.principal_axes for s in shapes],
         estimate_inertia=estimate_inertia,
+        inertia_sigma=inertia_sigma,
+        free_offset=free_offset,
     )
 
 

@@ -16,6 +16,7 @@ from lightcurve.inversion.bank import run_bank
 from lightcurve.inversion.context import (
     Context,
     Progress,
+    batch_problem,
     check_observations,
     initial_prior,
     resolve_shapes,
@@ -161,7 +162,7 @@ def _attitude_modes(ctx: Context, result: InversionResult) -> None:
     ]
     found = identify_attitude_mode(
         ctx.model,
-        ctx.problem(),
+        batch_problem(ctx.model, ctx.options.estimate_inertia),
         dict.fromkeys(range(ctx.model.n_shapes), starts),
         [ctx.symmetry(s).order for s in range(ctx.model.n_shapes)],
         omega_max=ctx.omega_max,

@@ -120,6 +120,23 @@ class InversionOptions:
         Estimate the tanh inertia parameters ``k`` (UKF/PF; principal axes from the shape).
     inertia_sigma : float
         Prior 1σ of ``k`` around the shape's value.
+    estimate : tuple of str
+        Model adjustments fitted with the state on the whole arc by the UKF/MMAE's final
+        fit (see ``polish``), any of ``"inertia"`` (tanh parameters ``k``), ``"tilt"`` (of
+        the principal axes from the mesh's), ``"scale"`` (albedo–area scale, as a magnitude
+        offset), ``"stretch"`` (three principal-axis stretch factors: normals, areas,
+        shadows and inertia follow) and ``"material"`` (every BRDF parameter within its
+        physical range); see :class:`lightcurve.photometry.adjusted.AdjustableShape`.
+        ``()`` fits the state only.
+    model_tolerance_mag : float
+        A candidate whose whole-arc fit leaves an rms model error (mag, beyond the
+        measurement errors) above this does not fit: ``none_fits`` when no candidate
+        passes.
+    adaptive_noise : bool
+        UKF/MMAE: estimate each candidate's model-error variance online from its
+        innovations (covariance matching, Mehra 1970; Mohamed & Schwarz 1999) and add it
+        to the measurement variance, so that a filter facing an imperfect model widens its
+        measurement noise instead of gating most measurements away.
     estimate_offset : bool
         Estimate a magnitude offset (the albedo–area scale ``s``: ``Δm = −2.5 log10 s``).
     offset_sigma_mag : float
@@ -152,10 +169,13 @@ class InversionOptions:
     min_mode_weight : float
         Modes lighter than this are not reported.
     polish : bool
-        With the Gaussian likelihood, refine every PF cluster by Levenberg–Marquardt on
-        the whole arc and weigh the distinct optima by their Laplace evidence (see
-        :func:`_polish`); the summary then reports the heaviest optimum and its
-        Gauss–Newton covariance.
+        Refine the final states on the whole arc by Levenberg–Marquardt and report the
+        best optimum with its Gauss–Newton covariance. PF (Gaussian likelihood): every
+        cluster, the distinct optima weighed by their Laplace evidence
+        (:func:`lightcurve.inversion.polish.polish`). UKF/MMAE: the filter's hypotheses,
+        with the adjustments ``estimate`` (:mod:`lightcurve.inversion.model_fit`); the
+        shapes are weighed by the Laplace evidence of their best fits and the residual
+        misfit gives the model error (``model_tolerance_mag``).
     faint_margin : float
         Magnitudes between the faintest measurement and the prediction floor.
     compile : bool
@@ -194,6 +214,9 @@ class InversionOptions:
     kappa: float = 0.0
     underweighting: float = 0.0
     gate_probability: float = 1e-4
+    estimate: tuple[str, ...] = ("inertia", "scale")
+    model_tolerance_mag: float = 0.05
+    adaptive_noise: bool = True
     estimate_inertia: bool = False
     inertia_sigma: float = 0.5
     estimate_offset: bool = False
@@ -229,6 +252,18 @@ class InversionOptions:
             raise ValueError(f"init must be 'search' or 'none', got {self.init!r}")
         if not (self.pf_rate_scales and all(0 < s <= 1 for s in self.pf_rate_scales)):
             raise ValueError(f"pf_rate_scales must be in (0, 1], got {self.pf_rate_scales!r}")
+        from lightcurve.photometry.adjusted import ADJUSTMENTS
+
+        unknown = sorted(set(self.estimate) - set(ADJUSTMENTS))
+        if unknown:
+            raise ValueError(
+                f"unknown adjustment(s) in estimate: {', '.join(unknown)}; choose from "
+                + ", ".join(ADJUSTMENTS)
+            )
+        if not (math.isfinite(self.model_tolerance_mag) and self.model_tolerance_mag >= 0):
+            raise ValueError(
+                f"model_tolerance_mag must be finite and ≥ 0, got {self.model_tolerance_mag}"
+            )
         if self.likelihood not in ("gaussian", "student"):
             raise ValueError(f"likelihood must be 'gaussian' or 'student', got {self.likelihood!r}")
 
@@ -253,6 +288,7 @@ _COMMON = frozenset(
         "consistency_level",
         "faint_margin",
         "compile",
+        "polish",
     }
 )
 #: Options of the UKF and of the MMAE bank of UKFs.
@@ -271,6 +307,9 @@ _FILTER = frozenset(
         "inertia_sigma",
         "estimate_offset",
         "offset_sigma_mag",
+        "estimate",
+        "model_tolerance_mag",
+        "adaptive_noise",
     }
 )
 #: Options of the particle filter and of its search.
@@ -289,7 +328,6 @@ _PARTICLE = frozenset(
         "mode_angle_deg",
         "mode_rate_deg_s",
         "min_mode_weight",
-        "polish",
     }
 )
 #: Options read only with ``modes=True`` (the attitude-mode test).

@@ -114,7 +114,8 @@ def run_pf(ctx: Context) -> InversionResult:
         )
     parameters = {}
     if modes and modes[0].k is not None:
-        parameters["k1"], parameters["k2"] = (float(v) for v in modes[0].k)
+        for key, value in zip(("k1", "k2"), modes[0].k, strict=True):
+            parameters[key] = {"value": float(value), "sigma": math.nan}
     return make_result(
         ctx,
         name=name,

@@ -53,7 +53,17 @@ class InversionResult:
         with several shapes.
     notes : list of str
     parameters : dict
-        Other estimates: ``k1, k2`` (tanh inertia), ``magnitude_offset`` (mag).
+        Model adjustments estimated with the state, name → ``{"value", "sigma"}`` (1σ):
+        ``k1, k2`` (tanh inertia) and ``inertia_ratio_1/2`` (J₁/J₃, J₂/J₃),
+        ``magnitude_offset`` (mag), ``stretch_1..3``, ``tilt_deg``,
+        ``"<material>.<parameter>"`` (see
+        :meth:`lightcurve.photometry.adjusted.AdjustableShape.physical`).
+    rejected_fraction : float
+        Fraction of the measurements the filters' innovation gate rejected (UKF/MMAE).
+    model_error_mag : float
+        rms magnitude misfit of the reported candidate beyond the measurement errors
+        (whole-arc fit; without it, the filter's covariance-matching estimate); NaN for the
+        PF.
     symmetry : dict
         Symmetry group of the reported shape (order, continuous axis, quaternions).
     covariance : (6, 6) numpy.ndarray
@@ -78,7 +88,9 @@ class InversionResult:
     n_measurements: int
     estimates: pd.DataFrame
     notes: list[str] = field(default_factory=list)
-    parameters: dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, dict[str, float]] = field(default_factory=dict)
+    rejected_fraction: float = 0.0
+    model_error_mag: float = math.nan
     symmetry: dict[str, Any] = field(default_factory=dict)
     covariance: np.ndarray = field(default_factory=lambda: np.full((6, 6), np.nan))
     runtime_s: float = 0.0
@@ -100,7 +112,13 @@ class InversionResult:
             "residual_rms_mag": float(self.residual_rms_mag),
             "n_measurements": int(self.n_measurements),
             "notes": list(self.notes),
-            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "parameters": {
+                k: {"value": float(v["value"]), "sigma": float(v["sigma"])}
+                for k, v in self.parameters.items()
+            },
+            "rejected_fraction": float(self.rejected_fraction),
+            "model_error_mag": float(self.model_error_mag),
+            "consistent": not bool(self.none_fits),
             "symmetry": self.symmetry,
             "runtime_s": float(self.runtime_s),
             **(self.attitude_mode or {}),
@@ -119,7 +137,7 @@ def make_result(
     estimates: pd.DataFrame,
     group: SymmetryGroup,
     modes: list[dict[str, Any]] | None = None,
-    parameters: dict[str, float] | None = None,
+    parameters: dict[str, dict[str, float]] | None = None,
 ) -> InversionResult:
     """The result of a run: the final state ``q, omega`` (rad/s) with its covariance of
     ``[δθ (rad), ω (rad/s)(, …)]``, the shape ``name`` and ``probabilities`` (one per

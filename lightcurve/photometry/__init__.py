@@ -13,6 +13,9 @@ Modules
 - :mod:`~lightcurve.photometry.kernels` — the renderer's compiled fast path (package).
 - :mod:`~lightcurve.photometry.reference` — the same measurement model written plainly in
   numpy, the reference the kernels are tested against.
+- :mod:`~lightcurve.photometry.adjusted` — a library shape under continuous adjustments
+  (stretch, materials, albedo–area scale, inertia and its axes): the measurement model of
+  an imperfect candidate.
 - :mod:`~lightcurve.photometry.articulated` — articulated shapes, each rigid group in its
   own frame.
 - :mod:`~lightcurve.photometry.profiles` — attitude profiles of stabilised satellites

@@ -10,6 +10,8 @@ Convex shapes only (no shadowing).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 import brdf
@@ -17,7 +19,7 @@ from filters.attitude import attitude_matrix
 from lightcurve.sky.geometry import AU_M
 from shapes import CompiledFacets, FacetModel
 
-__all__ = ["reference_flux"]
+__all__ = ["facet_flux_sum", "reference_flux"]
 
 
 def reference_flux(
@@ -50,20 +52,66 @@ def reference_flux(
     d = np.linalg.norm(observer, axis=-1)
     light = np.einsum("eij,ej->ei", a, sun / r_sun[:, None])
     view = np.einsum("eij,ej->ei", a, observer / d[:, None])
-    total = np.zeros(len(q), dtype=dtype)
-    for index, material in enumerate(compiled.materials):
-        rows = compiled.material_index == index
-        model = brdf.get(material.brdf, **material.params)
-        normals = compiled.normals[rows].astype(dtype)
-        tangents = compiled.tangents[rows].astype(dtype) if model.anisotropic else None
-        n = normals[None, :, :]
+    models = [brdf.get(m.brdf, **m.params) for m in compiled.materials]
+    total = facet_flux_sum(
+        compiled.normals.astype(dtype),
+        compiled.areas.astype(dtype),
+        compiled.tangents.astype(dtype),
+        compiled.material_index,
+        models,
+        light,
+        view,
+    )
+    return total * (AU_M / r_sun) ** 2 / d**2
+
+
+def facet_flux_sum(
+    normals: np.ndarray,
+    areas: np.ndarray,
+    tangents: np.ndarray,
+    material_index: np.ndarray,
+    models: Sequence[brdf.BRDF],
+    light: np.ndarray,
+    view: np.ndarray,
+    shadow: np.ndarray | None = None,
+) -> np.ndarray:
+    """``Σ ρ(n, L, V) A (n·L)⁺(n·V)⁺ · shadow`` over facets, by the BRDF vector forms.
+
+    Parameters
+    ----------
+    normals, tangents : (K, 3) float
+        Unit normals and tangents (body frame).
+    areas : (K,) float
+        m².
+    material_index : (K,) int
+        Entry of ``models`` of each facet.
+    models : sequence of brdf.BRDF
+    light, view : (R, 3) float
+        Body-frame unit vectors to the Sun and to the observer.
+    shadow : (R, K) float, optional
+        Joint lit-and-seen fraction of every facet.
+
+    Returns
+    -------
+    (R,) numpy.ndarray
+        m² (flux ratio at unit distances).
+    """
+    total = np.zeros(len(light), dtype=light.dtype)
+    for index, model in enumerate(models):
+        rows = material_index == index
+        if not rows.any():
+            continue
+        n = normals[rows][None, :, :]
         rho = model(
             n,
             light[:, None, :],
             view[:, None, :],
-            tangent=None if tangents is None else tangents[None, :, :],
+            tangent=tangents[rows][None, :, :] if model.anisotropic else None,
         )
         nl = np.clip(np.sum(n * light[:, None, :], axis=-1), 0, None)
         nv = np.clip(np.sum(n * view[:, None, :], axis=-1), 0, None)
-        total += np.sum(rho * compiled.areas[rows].astype(dtype) * nl * nv, axis=-1)
-    return total * (AU_M / r_sun) ** 2 / d**2
+        terms = rho * areas[rows] * nl * nv
+        if shadow is not None:
+            terms = terms * shadow[:, rows]
+        total += np.sum(terms, axis=-1)
+    return total
