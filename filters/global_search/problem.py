@@ -164,7 +164,7 @@ class BatchProblem:
         """Tanh parameters of every shape's own inertia, shape (S, 2) (a plate-like
         inertia's nearest tanh form)."""
         moments = np.sort(np.linalg.eigvalsh(np.stack(self.inertias)), axis=-1)
-        return tanh_from_inertia(moments, margin=1e-6)
+        return np.stack([tanh_from_inertia(m, margin=1e-6) for m in moments])  # (3,) each
 
     @property
     def has_inertia_prior(self) -> bool:

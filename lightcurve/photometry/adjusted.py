@@ -234,7 +234,7 @@ class AdjustableShape:
         signs[signs == 0] = 1.0
         axes = axes * signs[:, None, :]
         axes[:, :, 2] *= np.sign(np.linalg.det(axes))[:, None]
-        ratios = inertia_ratios(moments)
+        ratios = np.stack([inertia_ratios(m) for m in moments])  # (3, 3): three bodies
         if "inertia" in self.estimate:
             ratios = ratios_from_tanh(self._values(theta, "inertia").T.reshape(n, 2))
         if "tilt" in self.estimate:
