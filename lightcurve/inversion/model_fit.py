@@ -267,13 +267,24 @@ def fit_arc(
             jac = jacobian(q_ref, x, r)
             if done:
                 break
-        fits.append(_finish(adjustable, arc, q_ref, x, r, jac, prior_info, n_data, iterations))
+        fits.append(
+            _finish(
+                arc,
+                q_ref=q_ref,
+                x=x,
+                r=r,
+                jac=jac,
+                prior_info=prior_info,
+                n_data=n_data,
+                iterations=iterations,
+            )
+        )
     return fits
 
 
 def _finish(
-    adjustable: AdjustableShape,
     arc: _ArcModel,
+    *,
     q_ref: np.ndarray,
     x: np.ndarray,
     r: np.ndarray,

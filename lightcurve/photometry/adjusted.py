@@ -296,7 +296,14 @@ class AdjustableShape:
             else:
                 shadow = joint_visible_fraction(c, light_0, view_0)
         total = facet_flux_sum(
-            normals, areas, tangents, c.material_index, self.materials(theta), light, view, shadow
+            normals,
+            areas,
+            tangents,
+            c.material_index,
+            self.materials(theta),
+            light=light,
+            view=view,
+            shadow=shadow,
         )
         return total * self.scale_factor(theta)
 

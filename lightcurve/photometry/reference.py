@@ -59,8 +59,8 @@ def reference_flux(
         compiled.tangents.astype(dtype),
         compiled.material_index,
         models,
-        light,
-        view,
+        light=light,
+        view=view,
     )
     return total * (AU_M / r_sun) ** 2 / d**2
 
@@ -71,6 +71,7 @@ def facet_flux_sum(
     tangents: np.ndarray,
     material_index: np.ndarray,
     models: Sequence[brdf.BRDF],
+    *,
     light: np.ndarray,
     view: np.ndarray,
     shadow: np.ndarray | None = None,
