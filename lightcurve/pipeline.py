@@ -8,11 +8,13 @@ objects, plain data that ships to worker processes or a Dask cluster: an :class:
 read the file) and the inversion's tuning, an
 :class:`~lightcurve.inversion.options.InversionOptions`.
 
-Summary keys (the contract of ``docs/inversion.md``): ``input``, ``method``, ``status``,
-``error``, ``shape``, ``shape_probabilities``, ``none_fits``, ``epoch`` (ISO UTC of the last
-measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``, ``omega_sigma_rad_s``,
-``modes``, ``residual_rms_mag``, ``n_measurements``, ``runtime_s`` and, with ``modes``,
-``attitude_mode``, ``attitude_mode_probability``, ``attitude_offsets_deg`` (None without).
+Summary keys (the contract of ``docs/inversion.md``, "Result files"): ``input``, ``method``,
+``status``, ``error``, ``shape``, ``shape_probabilities``, ``none_fits``, ``epoch`` (ISO UTC
+of the last measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``,
+``omega_sigma_rad_s``, ``modes``, ``residual_rms_mag``, ``model_error_mag``,
+``rejected_fraction``, ``consistent``, ``parameters`` (name → ``{"value", "sigma"}``),
+``n_measurements``, ``runtime_s`` and, with ``modes``, ``attitude_mode``,
+``attitude_mode_probability``, ``attitude_offsets_deg`` (None without).
 """
 
 from __future__ import annotations
