@@ -19,6 +19,8 @@ networkx, which cost seconds at the start of a process.
 
 Modules
 -------
+- :mod:`~shapes.appendage` — Appendages for facet models: an antenna or a thruster placed clear
+  on a flat face.
 - :mod:`~shapes.articulation` — Articulated shapes: named rigid parts on one-axis joints.
 - :mod:`~shapes.compiled` — The compiled (render-ready) form of a facet model: coplanar facets
   merged by material.
