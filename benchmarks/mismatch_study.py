@@ -49,6 +49,7 @@ from filters.attitude import (
 )
 from filters.attitude.inertia import ratios_from_tanh, tanh_from_inertia
 from filters.gaussian import mahalanobis_squared
+from filters.symmetry import SymmetryGroup
 from lightcurve.inversion import InversionResult, shape_symmetry
 from lightcurve.io.observations import Observations
 from lightcurve.photometry.render import Renderer
@@ -60,6 +61,7 @@ from lightcurve.sky.ephemeris import (
     site_position,
     sun_position,
 )
+from lightcurve.sky.geometry import reciprocity_twin
 from lightcurve.sky.shadow_earth import earth_shadow
 from lightcurve.sky.sites import get_site
 from shapes import FacetModel, Perturbation, get_library, perturbed_model
@@ -351,6 +353,8 @@ def score(
         ),
         "probabilities": {k: float(v) for k, v in result.shape_probabilities.items()},
         "none_fits": bool(result.none_fits),
+        "quaternion": [float(v) for v in result.quaternion],
+        "omega_deg_s": [math.degrees(float(v)) for v in result.omega_rad_s],
         "attitude_sigma_deg": float(result.attitude_sigma_deg),
         "residual_rms_mag": float(result.residual_rms_mag),
         "n_measurements": int(result.n_measurements),
@@ -392,11 +396,36 @@ def _state_errors(
             nees = float(mahalanobis_squared(error, covariance))
         except np.linalg.LinAlgError:
             nees = math.inf
+    twins = _twin_errors(group, q, truth, observations)
+    nearest = min(twins, key=twins.get) if twins else None
     return {
         "attitude_error_deg": attitude,
         "rate_error_deg_s": math.degrees(float(np.linalg.norm(omega_true - omega))),
         "inside_3_sigma": bool(attitude <= 3.0 * result.attitude_sigma_deg),
         "nees": nees,
+        "attitude_error_or_twin_deg": min(attitude, twins[nearest]) if twins else attitude,
+        "nearest_twin": nearest if twins and twins[nearest] < attitude else None,
+    }
+
+
+def _twin_errors(
+    group: SymmetryGroup, q: np.ndarray, truth: np.ndarray, observations: Observations
+) -> dict[str, float]:
+    """Attitude error (deg, modulo the group) of ``q`` from the photometric twins of the
+    true final state under the final geometry: the reciprocity twin
+    (:func:`lightcurve.sky.geometry.reciprocity_twin`), and for a mirror-symmetric shape the
+    mirror twin (:meth:`filters.symmetry.SymmetryGroup.mirror_twin`) and its reciprocity
+    twin. Each renders as the truth does while the geometry stands still; a long arc tells
+    them apart, so an estimate at a twin is an ambiguity the arc did not resolve."""
+    sun, observer = observations.sun_vectors[-1], observations.observer_vectors[-1]
+    twins = {"reciprocity": reciprocity_twin(truth[:4], sun, observer)}
+    mirror = group.mirror_twin(truth[:4], truth[4:], sun, observer)
+    if mirror is not None:
+        twins["mirror"] = mirror[0]
+        twins["mirror_reciprocity"] = reciprocity_twin(mirror[0], sun, observer)
+    return {
+        name: math.degrees(float(group.attitude_error(q, np.asarray(twin, float))))
+        for name, twin in twins.items()
     }
 
 
