@@ -130,8 +130,17 @@ def run_case(settings: Settings, scenario: str, index: int) -> dict[str, Any]:
         leo_min_pass_s=settings.leo_min_pass_s,
     )
     kinds = ("perturbed", "exact") if settings.exact else ("perturbed",)
-    lightcurves = {kind: simulate_case(case, kind) for kind in kinds}
-    truths = {kind: truth_parameters(case, kind, obs) for kind, obs in lightcurves.items()}
+    lightcurves: dict[str, Observations | str] = {}
+    for kind in kinds:
+        try:
+            lightcurves[kind] = simulate_case(case, kind)
+        except ValueError as exc:  # dark at every epoch: every run of this truth fails
+            lightcurves[kind] = f"simulate: {exc}"
+    truths = {
+        kind: truth_parameters(case, kind, obs)
+        for kind, obs in lightcurves.items()
+        if not isinstance(obs, str)
+    }
     records = []
     for method in settings.methods:
         if index >= settings.runs[method]:
@@ -144,10 +153,17 @@ def run_case(settings: Settings, scenario: str, index: int) -> dict[str, Any]:
                 if foreign and kind == "exact":
                     continue
                 label = f"{method}_foreign" if foreign else method
-                records.append(
-                    _one_run(settings, case, method, names, lightcurves[kind], truths[kind])
-                    | {"method": label, "truth": kind, "candidates": names}
-                )
+                observations = lightcurves[kind]
+                if isinstance(observations, str):
+                    record = {
+                        "scenario": scenario,
+                        "run": index,
+                        "parent": parent,
+                        "error": observations,
+                    }
+                else:
+                    record = _one_run(settings, case, method, names, observations, truths[kind])
+                records.append(record | {"method": label, "truth": kind, "candidates": names})
     return {"case": case.record(), "truth_parameters": truths, "runs": records}
 
 
