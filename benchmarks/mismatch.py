@@ -394,9 +394,12 @@ def run(settings: Settings, workers: int = 2) -> list[dict[str, Any]]:
     def report(job: tuple[str, int], case: dict[str, Any]) -> None:
         done[job] = case
         errors = [f"{r['method']}/{r['truth']}: {r['error']}" for r in case["runs"] if "error" in r]
+        times = ", ".join(
+            f"{r['method']}/{r['truth']} {r['wall_s']:.0f} s" for r in case["runs"] if "wall_s" in r
+        )
         print(
             f"mismatch: {len(done)}/{len(jobs)} {job[0]} run {job[1]} ({case['case']['parent']})"
-            + (f"; errors: {errors}" if errors else ""),
+            f": {times}" + (f"; errors: {errors}" if errors else ""),
             file=sys.stderr,
             flush=True,
         )
