@@ -9,7 +9,9 @@ model (body) frame. Main entry points:
 - :class:`VisibilityTable`, :func:`build_visibility_table`, :func:`visible_fraction`,
   :func:`joint_visible_fraction` for self-shadowing of non-convex models;
 - :func:`validate` and :class:`ShapeError`;
-- :class:`ShapeLibrary` / :func:`get_library` for the folder of named shapes.
+- :class:`ShapeLibrary` / :func:`get_library` for the folder of named shapes;
+- :func:`perturbed_model` (and its record :class:`Perturbation`): a "real object" drawn
+  around a model, for validating inversions on truths that are not their model.
 
 The names are loaded on first use (PEP 562 module ``__getattr__``): ``import shapes`` or a
 light submodule such as :mod:`shapes.files` does not import trimesh, scipy.spatial or
@@ -17,6 +19,8 @@ networkx, which cost seconds at the start of a process.
 
 Modules
 -------
+- :mod:`~shapes.appendage` — Appendages for facet models: an antenna or a thruster placed clear
+  on a flat face.
 - :mod:`~shapes.articulation` — Articulated shapes: named rigid parts on one-axis joints.
 - :mod:`~shapes.compiled` — The compiled (render-ready) form of a facet model: coplanar facets
   merged by material.
@@ -32,6 +36,8 @@ Modules
   specifications.
 - :mod:`~shapes.model` — The facet model: a triangle mesh with named groups, materials and mass
   properties.
+- :mod:`~shapes.perturbation` — Perturbed copies of a facet model: stretch, materials, mass
+  distribution and an appendage drawn around it, with the true values recorded.
 - :mod:`~shapes.preview` — PNG previews of facet models, coloured by material, seen from a
   chosen direction.
 - :mod:`~shapes.primitives` — Primitive facet models with named groups and default materials
@@ -57,6 +63,7 @@ _SOURCES = {
     "CompiledFacets": "shapes.compiled",
     "FacetModel": "shapes.model",
     "Material": "shapes.material",
+    "Perturbation": "shapes.perturbation",
     "ShapeError": "shapes.errors",
     "ShapeLibrary": "shapes.library.core",
     "VisibilityTable": "shapes.visibility.table",
@@ -67,6 +74,7 @@ _SOURCES = {
     "joint_visible_fraction": "shapes.visibility.sampling",
     "load": "shapes.io",
     "load_damit": "shapes.io",
+    "perturbed_model": "shapes.perturbation",
     "primitives": "shapes.primitives",
     "validate": "shapes.validation",
     "visible_fraction": "shapes.visibility.sampling",
@@ -78,6 +86,7 @@ __all__ = [
     "CompiledFacets",
     "FacetModel",
     "Material",
+    "Perturbation",
     "ShapeError",
     "ShapeLibrary",
     "VisibilityTable",
@@ -88,6 +97,7 @@ __all__ = [
     "joint_visible_fraction",
     "load",
     "load_damit",
+    "perturbed_model",
     "primitives",
     "validate",
     "visible_fraction",
@@ -118,6 +128,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from shapes.library.core import ShapeLibrary, builtin_library_path, get_library
     from shapes.material import Material
     from shapes.model import FacetModel, inertia_from_components
+    from shapes.perturbation import Perturbation, perturbed_model
     from shapes.validation import validate
     from shapes.visibility.build import build_visibility_table
     from shapes.visibility.sampling import joint_visible_fraction, visible_fraction
