@@ -364,15 +364,23 @@ def score(
     }
     if result.shape == parent:
         record.update(_state_errors(result, observations, get_library().load(parent)))
-    record["parameters"] = {k: float(v) for k, v in result.parameters.items()}
-    record["parameter_errors"] = {
-        k: float(v) - truths[k] for k, v in result.parameters.items() if k in truths
+    values = {k: _value(v) for k, v in result.parameters.items()}
+    record["parameters"] = values
+    record["parameter_sigmas"] = {
+        k: float(v["sigma"]) for k, v in result.parameters.items() if isinstance(v, dict)
     }
-    if "k1" in result.parameters and "k1" in truths:
-        estimated = ratios_from_tanh(np.array([result.parameters["k1"], result.parameters["k2"]]))
+    record["model_error_mag"] = float(getattr(result, "model_error_mag", math.nan))
+    record["parameter_errors"] = {k: v - truths[k] for k, v in values.items() if k in truths}
+    if "k1" in values and "k1" in truths:
+        estimated = ratios_from_tanh(np.array([values["k1"], values["k2"]]))
         true = ratios_from_tanh(np.array([truths["k1"], truths["k2"]]))
         record["inertia_ratio_error"] = float(np.max(np.abs(estimated - true)))
     return record
+
+
+def _value(entry: Any) -> float:
+    """An estimated parameter's value: ``{"value", "sigma"}`` or a bare number."""
+    return float(entry["value"] if isinstance(entry, dict) else entry)
 
 
 def _state_errors(
