@@ -33,10 +33,12 @@ from lightcurve.photometry.adjusted import AdjustableShape
 
 __all__ = ["Refit", "refit_arc"]
 
-#: Hypotheses of a candidate refitted, at most (heaviest first).
+#: Hypotheses of the most probable candidate refitted, at most (heaviest first); the other
+#: candidates refit their heaviest one (and their best initial fit): their best fits weigh
+#: them and test them against the tolerance, the most probable one's gives the state.
 MAX_STARTS = 3
 #: Initial fits of a candidate continued to the whole arc, at most (best first).
-SEARCH_STARTS = 6
+SEARCH_STARTS = 2
 #: Hypotheses lighter than this fraction of the heaviest are not refitted.
 MIN_RELATIVE_WEIGHT = 1e-3
 
@@ -107,7 +109,8 @@ class Refit:
 
 def refit_arc(ctx: Context, bank: MultipleModelBank, found: SearchResult | None = None) -> Refit:
     """Refit the heaviest hypotheses of every live candidate of ``bank`` on the whole arc
-    (see the module docstring), and the best ``SEARCH_STARTS`` initial fits of each in
+    (see the module docstring; ``MAX_STARTS`` of the most probable, one of the others),
+    and the best ``SEARCH_STARTS`` initial fits of the most probable (one of the others) in
     ``found`` continued from their window to the whole arc
     (:func:`~lightcurve.inversion.model_fit.fit_arc_growing`): a filter whose model is
     wrong in inertia can lose the state that its initial fit had found."""
@@ -129,7 +132,8 @@ def refit_arc(ctx: Context, bank: MultipleModelBank, found: SearchResult | None 
         log_w = bank.log_weights[j]
         order = np.argsort(-log_w, kind="stable")
         keep = order[log_w[order] >= log_w[order[0]] + math.log(MIN_RELATIVE_WEIGHT)]
-        rows = members.start + keep[:MAX_STARTS]
+        leading = j == bank.best
+        rows = members.start + keep[: MAX_STARTS if leading else 1]
         candidates = fit_arc(
             ctx.model,
             adjustable,
@@ -138,7 +142,7 @@ def refit_arc(ctx: Context, bank: MultipleModelBank, found: SearchResult | None 
             omega_max=ctx.omega_max,
         )
         if found is not None:
-            mine = np.flatnonzero(found.shape == j)[:SEARCH_STARTS]
+            mine = np.flatnonzero(found.shape == j)[: SEARCH_STARTS if leading else 1]
             window = float(ctx.model.times[found.epochs[-1]] - ctx.model.times[0])
             candidates += fit_arc_growing(
                 ctx.model,
