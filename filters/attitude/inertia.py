@@ -25,6 +25,7 @@ __all__ = [
     "inertia_from_normalized",
     "inertia_from_tanh",
     "inertia_ratios",
+    "moment_ratios",
     "normalized_from_inertia",
     "principal_axes",
     "ratios_from_tanh",
@@ -161,7 +162,9 @@ def inertia_ratios(inertia: Any) -> Any:
     Parameters
     ----------
     inertia : (..., 3) or (..., 3, 3) array
-        Principal moments or a principal-axis (diagonal) tensor.
+        Principal moments or a principal-axis (diagonal) tensor. A ``(3, 3)`` array is one
+        tensor, never three moment vectors: a stack of moments goes to
+        :func:`moment_ratios`.
 
     Returns
     -------
@@ -170,6 +173,23 @@ def inertia_ratios(inertia: Any) -> Any:
     xp, (j,) = as_arrays(inertia)
     if j.ndim >= 2 and j.shape[-2:] == (3, 3):
         j = xp.stack([j[..., 0, 0], j[..., 1, 1], j[..., 2, 2]], axis=-1)
+    return moment_ratios(j)
+
+
+def moment_ratios(moments: Any) -> Any:
+    """The ratios of :func:`inertia_ratios` from principal moments only.
+
+    Parameters
+    ----------
+    moments : (..., 3) array
+        Principal moments ``[J1, J2, J3]``, any number of leading dimensions (a stack of
+        three bodies is ``(3, 3)``, which :func:`inertia_ratios` would read as one tensor).
+
+    Returns
+    -------
+    (..., 3) array
+    """
+    xp, (j,) = as_arrays(moments)
     jx, jy, jz = j[..., 0], j[..., 1], j[..., 2]
     return xp.stack([(jy - jz) / jx, (jz - jx) / jy, (jx - jy) / jz], axis=-1)
 

@@ -18,7 +18,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from filters.attitude.arrays import as_arrays, cross, matvec
-from filters.attitude.inertia import inertia_ratios, ratios_from_tanh, validate_inertia
+from filters.attitude.inertia import moment_ratios, ratios_from_tanh, validate_inertia
 from filters.attitude.kinematics import quaternion_rate
 from filters.attitude.quaternion import (
     attitude_matrix,
@@ -301,7 +301,7 @@ class PrincipalInertia(NamedTuple):
         # Right-handed: flip the third axis of the reflections.
         flip = np.where(np.linalg.det(axes) < 0, -1.0, 1.0)[..., None]
         axes = np.concatenate([axes[..., :2], axes[..., 2:] * flip[..., None]], axis=-1)
-        return cls._of(axes, inertia_ratios(moments))
+        return cls._of(axes, moment_ratios(moments))
 
     @classmethod
     def from_tanh(cls, k: Any, axes: Any = None) -> PrincipalInertia:

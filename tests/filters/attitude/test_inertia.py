@@ -13,6 +13,7 @@ from filters.attitude import (
     inertia_from_normalized,
     inertia_from_tanh,
     inertia_ratios,
+    moment_ratios,
     normalized_from_inertia,
     principal_axes,
     ratios_from_tanh,
@@ -57,6 +58,15 @@ def test_ratio_identity_for_physical_bodies():
     p = inertia_ratios(moments[ok])
     np.testing.assert_allclose(p[:, 0] + p[:, 1] + p[:, 2] + np.prod(p, axis=1), 0, atol=1e-14)
     assert np.all(np.abs(p) < 1)
+
+
+def test_moment_ratios_read_a_stack_of_three_bodies_as_three_bodies():
+    """A ``(3, 3)`` array of moments is three bodies for :func:`moment_ratios`, while
+    :func:`inertia_ratios` reads it as one diagonal tensor."""
+    moments = np.array([[260.4, 208.3, 135.4], [1.0, 1.0, 1.0], [0.83, 3.33, 4.17]])
+    each = np.stack([inertia_ratios(m) for m in moments])
+    np.testing.assert_allclose(moment_ratios(moments), each, atol=1e-15)
+    np.testing.assert_allclose(inertia_ratios(np.diag(moments[0])), each[0], atol=1e-15)
 
 
 def test_principal_dynamics_equal_full_tensor():

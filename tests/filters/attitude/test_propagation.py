@@ -194,3 +194,26 @@ def test_compiled_trajectory_equals_the_element_wise_torch_kernel(per_body):
     )
     assert np.allclose(q, q_t.detach().numpy(), rtol=0, atol=1e-14)
     assert np.allclose(w, w_t.detach().numpy(), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("bodies", [1, 2, 3, 4])
+def test_a_stack_of_inertias_propagates_each_body_as_alone(bodies):
+    """``PrincipalInertia.from_inertia`` of a stack of tensors (three of them, a ``(3, 3)``
+    array of moments, included) gives every body its own axes and ratios: a trajectory of
+    the stack equals each body's trajectory alone."""
+    rng = np.random.default_rng(bodies)
+    stack = np.stack(
+        [J_NUTATION, np.diag([260.4, 208.3, 135.4]), np.diag([0.83, 3.33, 4.17]), np.eye(3)]
+    )[:bodies]
+    together = PrincipalInertia.from_inertia(stack)
+    q0 = random_quaternion(bodies, rng)
+    w0 = rng.normal(0.0, 0.05, (bodies, 3))
+    q, w = torque_free_trajectory(q0, w0, [0.0, 40.0, 90.0], together, 2.0)
+    for i in range(bodies):
+        alone = PrincipalInertia.from_inertia(stack[i])
+        np.testing.assert_allclose(together.ratios[i], alone.ratios, atol=1e-14)
+        q_i, w_i = torque_free_trajectory(
+            q0[i : i + 1], w0[i : i + 1], [0.0, 40.0, 90.0], alone, 2.0
+        )
+        assert attitude_angle(q[i], q_i[0]).max() < 1e-9
+        np.testing.assert_allclose(w[i], w_i[0], atol=1e-12)
