@@ -250,7 +250,8 @@ def tanh_from_inertia(inertia: Any) -> Any:
     Parameters
     ----------
     inertia : (..., 3) or (..., 3, 3) array
-        Principal moments, or a diagonal tensor in its principal frame.
+        Principal moments, or a diagonal tensor in its principal frame (a ``(3, 3)`` array
+        is one tensor, as for :func:`inertia_ratios`).
 
     Returns
     -------
