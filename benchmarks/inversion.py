@@ -6,6 +6,7 @@ particle-filter speed study. Prints JSON.
     python -m benchmarks.inversion mmae-outside [--runs 30] [--seed 0] [--extra itokawa,bennu]
     python -m benchmarks.inversion pf   [--runs 20] [--seed 0] [--shape itokawa]  # PF, no prior
     python -m benchmarks.inversion pf-box [--runs 10] [--seed 0]      # PF, box symmetry modes
+    python -m benchmarks.inversion pf-shapes [--runs 20] [--bank itokawa,box_wing,box]  # and shape
     python -m benchmarks.inversion speed                               # PF speed
     python -m benchmarks.inversion main-job [--files box_wing_tumbling,...]  # README job
     python -m benchmarks.inversion propagation                         # RK4 kernels
@@ -190,7 +191,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "study",
-        choices=["ukf", "mmae", "mmae-outside", "pf", "pf-box", "speed", "main-job", "propagation"],
+        choices=[
+            "ukf",
+            "mmae",
+            "mmae-outside",
+            "pf",
+            "pf-box",
+            "pf-shapes",
+            "speed",
+            "main-job",
+            "propagation",
+        ],
     )
     parser.add_argument("--runs", type=int, help="Monte Carlo runs (default per study)")
     parser.add_argument("--seed", type=int, default=0)
@@ -213,6 +224,14 @@ def main(argv: list[str] | None = None) -> int:
         "--files",
         default="box_wing_tumbling,rocket_body_tumbling,box_tumbling_ccd",
         help="main-job: files of data/observations (stems, comma-separated)",
+    )
+    parser.add_argument(
+        "--bank",
+        default="itokawa,box_wing,box",
+        help="pf-shapes: candidate shapes, each the truth in turn (comma-separated)",
+    )
+    parser.add_argument(
+        "--truths", help="pf-shapes: truth shapes taken in turn (default: the bank)"
     )
     parser.add_argument("--out", help="also write the JSON here")
     parser.add_argument("-v", "--verbose", action="store_true", help="print every run")
@@ -270,6 +289,17 @@ def main(argv: list[str] | None = None) -> int:
             particles=args.particles,
             progress=progress,
             first=args.first_run,
+        )
+    elif args.study == "pf-shapes":
+        result = pf_study(
+            args.runs or 20,
+            args.seed,
+            scenario=Scenario(duration_s=args.duration, rate_deg_s=(0.5, 5.0)),
+            particles=args.particles,
+            progress=progress,
+            first=args.first_run,
+            bank=args.bank.split(","),
+            truths=args.truths.split(",") if args.truths else None,
         )
     elif args.study == "main-job":
         result = main_job(args.files.split(","))

@@ -342,6 +342,9 @@ def pf_study(
     attitude_limit_deg: float = 5.0,
     progress: Callable[[str], None] | None = None,
     first: int = 0,
+    bank: Sequence[str] | None = None,
+    truths: Sequence[str] | None = None,
+    probability_limit: float = 0.9,
     **options: Any,
 ) -> dict[str, Any]:
     """Particle-filter study: the PF from a uniform attitude prior and ``|ω| ≤ omega_max``.
@@ -350,29 +353,50 @@ def pf_study(
     (modulo the shape's symmetry), how often some reported mode is (its attitude or a
     listed symmetry-equivalent) and how often the particle filter's own final mean is
     (before its modes are polished, ``filter_success_rate``).
+
+    With a ``bank`` of candidate shapes (joint attitude–shape inversion) run ``i`` takes
+    its truth from ``truths[i % len(truths)]`` (default: the bank, each shape in turn;
+    without a bank: ``shape_name``). A run then succeeds when the true shape wins with
+    ``p ≥ probability_limit`` and its attitude is within the limit; the errors of a run
+    whose result names another shape are infinite.
     """
     scenario = scenario or Scenario(rate_deg_s=(0.5, omega_max_deg_s))
-    shape = get_library().load(shape_name)
-    group = shape_symmetry(shape)
+    library = get_library()
+    candidates = list(bank or [shape_name])
+    truths = list(truths or (candidates if bank else [shape_name]))
+    models = {name: library.load(name) for name in {*candidates, *truths}}
+    groups = {name: shape_symmetry(models[name]) for name in truths}
 
     def one(i: int, rng: np.random.Generator) -> dict[str, Any]:
+        name = truths[i % len(truths)]
+        group = groups[name]
         truth = draw_truth(scenario, rng)
-        observations = simulate_run(scenario, shape, truth, rng)
+        observations = simulate_run(scenario, models[name], truth, rng)
         start = time.process_time()
         result = invert(
             observations,
-            {shape_name: shape},
+            {c: models[c] for c in candidates},
             "pf",
             omega_max=math.radians(omega_max_deg_s),
             particles=particles,
             seed=int(rng.integers(2**31)),
             **options,
         )
-        record = final_errors(result, observations, group)
+        right = result.shape == name
+        if right:
+            record = final_errors(result, observations, group)
+        else:
+            record = {"attitude_error_deg": math.inf, "rate_error_deg_s": math.inf}
+            record["nees"] = math.inf
         record["inversion_cpu_s"] = time.process_time() - start
+        record["truth"], record["shape"] = name, result.shape
+        record["p_truth"] = float(result.shape_probabilities.get(name, 0.0))
+        record["residual_rms_mag"] = result.residual_rms_mag
         final = observations.truth[-1, :4]
         mode_errors = [
             math.degrees(float(group.attitude_error(np.asarray(m["quaternion"]), final)))
+            if m.get("shape", name) == name
+            else math.inf
             for m in result.modes
         ]
         record["modes"] = len(result.modes)
@@ -381,16 +405,22 @@ def pf_study(
         record["truth_in_modes"] = bool(mode_errors) and min(mode_errors) < attitude_limit_deg
         # The particle filter's own final mean (before the modes are polished).
         filtered = result.estimates[["q1", "q2", "q3", "q4"]].to_numpy(float)[-1]
-        record["filter_attitude_error_deg"] = math.degrees(
-            float(group.attitude_error(filtered, final))
+        record["filter_attitude_error_deg"] = (
+            math.degrees(float(group.attitude_error(filtered, final))) if right else math.inf
+        )
+        record["success"] = (
+            record["p_truth"] >= probability_limit
+            and record["attitude_error_deg"] < attitude_limit_deg
         )
         return record
 
     records = _runs(runs, seed, one, progress, first)
     return {
         "study": "pf",
-        "shape": shape_name,
-        "symmetry_order": group.order,
+        "shape": shape_name if not bank else None,
+        "bank": candidates,
+        "truths": truths,
+        "symmetry_order": groups[truths[0]].order,
         "scenario": scenario.__dict__,
         "runs": runs,
         "first_run": first,
@@ -401,6 +431,8 @@ def pf_study(
         "success_rate": float(
             np.mean([r["attitude_error_deg"] < attitude_limit_deg for r in records])
         ),
+        "shape_and_attitude_rate": float(np.mean([r["success"] for r in records])),
+        "true_shape_rate": float(np.mean([r["p_truth"] >= probability_limit for r in records])),
         "truth_in_modes_rate": float(np.mean([r["truth_in_modes"] for r in records])),
         "filter_success_rate": float(
             np.mean([r["filter_attitude_error_deg"] < attitude_limit_deg for r in records])

@@ -250,7 +250,8 @@ def tanh_from_inertia(inertia: Any, margin: float = 0.0) -> Any:
     Parameters
     ----------
     inertia : (..., 3) or (..., 3, 3) array
-        Principal moments, or a diagonal tensor in its principal frame.
+        Principal moments, or a diagonal tensor in its principal frame (a ``(3, 3)`` array
+        is one tensor, as for :func:`inertia_ratios`).
     margin : float
         With ``margin > 0`` the ratios are clipped to ``[−1 + margin, 1 − margin]`` instead
         of raising: the nearest tanh form of a degenerate (plate-like) body.

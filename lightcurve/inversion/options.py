@@ -94,11 +94,12 @@ class InversionOptions:
         outside the bank every round fits poorly, and further rounds cost time without
         changing the answer. The PF's search runs all its rounds while the fit is poor.
     search_contention : float
-        MMAE search: a shape whose best fit of a window is worse than this many times the
-        best shape's (``χ²``, or the window's number of measurements if larger) goes on
-        with ``hypotheses`` candidates and no twins (see
-        :func:`filters.global_search.global_search`); ``inf`` gives every shape the full
-        schedule.
+        MMAE and PF searches: a shape whose best fit of a window is worse than this many
+        times the best shape's (``χ²``, or the window's number of measurements if larger)
+        goes on with ``hypotheses`` candidates (the PF's: ``2 · hypotheses``) and no twins
+        (see :func:`filters.global_search.global_search`); ``inf`` gives every shape the
+        full schedule. The PF also seeds particles around the best fits of every shape in
+        contention on the search's last window, and of no other.
     min_epochs : int
         Measurements per refinement window, at least (all of them in a shorter window).
     max_sample_rotation_deg : float
@@ -336,7 +337,7 @@ MODE_OPTIONS = frozenset({"mode_offset_sigma_deg", "mode_consistency_level", "mo
 METHOD_OPTIONS: dict[str, frozenset[str]] = {
     "ukf": _COMMON | _FILTER,
     "mmae": _COMMON | _FILTER | {"probability_floor", "search_contention"},
-    "pf": _COMMON | _PARTICLE,
+    "pf": _COMMON | _PARTICLE | {"search_contention"},
 }
 
 

@@ -43,11 +43,22 @@ def run_pf(ctx: Context) -> InversionResult:
     ctx.report(0.0, "global search of the initial state")
     found = initial_search(
         ctx,
-        candidates=opt.local_candidates if prior is not None else opt.global_candidates,
+        candidates=(
+            opt.local_candidates if prior is not None else opt.global_candidates * model.n_shapes
+        ),
         keep_last=2 * opt.hypotheses,
+        per_shape=True,
         for_pf=True,
     )
-    found = subset(found, slice(0, 2 * opt.hypotheses))
+    seeds = seed_candidates(
+        found.chi2,
+        found.shape,
+        best=2 * opt.hypotheses,
+        per_shape=PF_SHAPE_SEEDS,
+        measurements=len(found.epochs),
+        contention=opt.search_contention,
+    )
+    found = subset(found, seeds)
     q, omega, k, shape, component, log_w = _seed_particles(ctx, found, prior, ctx.particles)
     groups = [ctx.symmetry(s) for s in range(model.n_shapes)]
     pf = AttitudeParticleFilter(
@@ -129,6 +140,46 @@ def run_pf(ctx: Context) -> InversionResult:
         group=groups[best],
         modes=[_mode_summary(ctx, mode, groups[mode.shape]) for mode in modes],
     )
+
+
+#: Search candidates of every shape in contention that the particles are seeded around, at
+#: least.
+PF_SHAPE_SEEDS = 2
+
+
+def seed_candidates(
+    chi2: np.ndarray,
+    shape: np.ndarray,
+    *,
+    best: int,
+    per_shape: int,
+    measurements: int,
+    contention: float,
+) -> np.ndarray:
+    """Indices of the search candidates (sorted by ``chi2``, best first; shape indices
+    ``shape``) that the particles are seeded around: the ``best`` first, and the first
+    ``per_shape`` of every shape still in contention on the search's last window of
+    ``measurements`` (its best ``χ²`` within ``contention`` times the best shape's, or
+    times ``measurements`` if larger; the rule of the search,
+    :func:`filters.global_search.global_search`), in the search's order.
+
+    The best candidates overall can all be distinct fits of one shape while another shape
+    that fits the window almost as well ranks after them; its own best fits still get
+    particles, so that the filter and the polish weigh every such shape by the data. A
+    shape out of contention gets none: its particles would be weighed down at once, and
+    the components around them (each keeps its particle count) take particles from the
+    ones that fit (on a reduced 5-min box case with 600 particles, seeding every shape
+    left the filter's track at 0.48 mag rms against 0.054 without the ruled-out shapes).
+    """
+    chosen = np.zeros(len(shape), dtype=bool)
+    chosen[:best] = True
+    shapes = np.unique(shape)
+    lowest = np.array([chi2[shape == s].min() for s in shapes])
+    bound = contention * max(float(lowest.min()), measurements)
+    for s, value in zip(shapes, lowest, strict=True):
+        if value <= bound:
+            chosen[np.flatnonzero(shape == s)[:per_shape]] = True
+    return np.flatnonzero(chosen)
 
 
 def _mode_summary(ctx: Context, mode: Mode, group: SymmetryGroup) -> dict[str, Any]:

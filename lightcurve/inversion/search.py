@@ -33,7 +33,8 @@ def initial_search(
     keep_last : int
         Candidates kept on the last window, at least.
     per_shape : bool
-        Keep the counts for every shape (a bank needs fits of every shape).
+        Keep the counts for every shape (a bank needs fits of every shape; the PF gives
+        every shape the search it would get alone), with the ``search_contention`` rule.
     for_pf : bool
         The PF's schedule: windows growing ``pf_window_growth``-fold up to ``pf_window_s``,
         every search round run while the fit is poor and, without a prior, each round run
