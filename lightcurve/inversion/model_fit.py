@@ -43,9 +43,10 @@ from filters.attitude import (
     rotation_vector_to_quaternion,
     torque_free_trajectory,
 )
+from lightcurve.inversion.polish import log_pseudo_det
 from lightcurve.photometry.adjusted import AdjustableShape
 from lightcurve.photometry.measurement import PhotometricModel
-from lightcurve.photometry.render import SUN_MAGNITUDE
+from lightcurve.photometry.render import SUN_MAGNITUDE, magnitude_to_flux
 from lightcurve.sky.geometry import AU_M
 
 __all__ = ["ArcFit", "arc_states", "fit_arc", "fit_arc_growing"]
@@ -121,7 +122,7 @@ class _ArcModel:
         self.offsets = model.times[epochs] - model.times[reference]
         self.measured = model.magnitudes[epochs]
         self.sigma = model.errors[epochs]
-        self.floor = model._floor
+        self.floor = float(magnitude_to_flux(model.faint_limit))
         self.adjustable = adjustable
         # without stretch or material the library shape's own (fused) renderer serves
         self.renderer = (
@@ -301,8 +302,6 @@ def _finish(
     information = jac.T @ jac + np.diag(prior_info)
     covariance = np.linalg.pinv(information, hermitian=True)
     sigma_bar = math.sqrt(float(np.mean(arc.sigma**2)))
-    eigen = np.linalg.eigvalsh(0.5 * (covariance + covariance.T))
-    eigen = eigen[eigen > 1e-12 * eigen.max()]
     return ArcFit(
         quaternion=quaternion_canonical(q_ref),
         omega=x[3:6].copy(),
@@ -312,7 +311,7 @@ def _finish(
         inflation=inflation,
         model_error_mag=sigma_bar * math.sqrt(max(reduced - 1.0, 0.0)),
         residuals=-r * arc.sigma,
-        log_det=float(np.sum(np.log(eigen))),
+        log_det=log_pseudo_det(covariance),
         iterations=iterations,
     )
 

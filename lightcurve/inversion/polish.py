@@ -91,7 +91,7 @@ def polish(ctx: Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.ndar
     log_w = np.array(
         [
             -0.5 * chi2[i]
-            + 0.5 * _log_pseudo_det(covariance[i].numpy())
+            + 0.5 * log_pseudo_det(covariance[i].numpy())
             # a folded mode stands for its |G| symmetry-equivalent basins
             + (math.log(g.order) if g.axis is None else 0.0)
             for i, g in zip(kept, groups, strict=True)
@@ -128,7 +128,7 @@ def polish(ctx: Context, clusters: list[Mode]) -> tuple[list[Mode], list[np.ndar
     return modes, covariances
 
 
-def _log_pseudo_det(covariance: np.ndarray) -> float:
+def log_pseudo_det(covariance: np.ndarray) -> float:
     """``log det`` over the eigenvalues above 10⁻¹² of the largest (a direction no datum
     constrains has none in the Gauss–Newton pseudo-inverse)."""
     eigenvalues = np.linalg.eigvalsh(0.5 * (covariance + covariance.T))

@@ -46,7 +46,7 @@ import brdf
 from brdf.registry import describe
 from filters.attitude import (
     PrincipalInertia,
-    inertia_ratios,
+    inertia_from_tanh,
     ratios_from_tanh,
     rotation_vector_to_quaternion,
     tanh_from_inertia,
@@ -225,16 +225,8 @@ class AdjustableShape:
             d = np.stack([self.stretch_matrix(t) for t in theta])
             sigma = d @ sigma @ d
         trace = np.trace(sigma, axis1=-2, axis2=-1)[:, None, None]
-        inertia = trace * np.eye(3) - sigma
-        moments, axes = np.linalg.eigh(inertia)
-        flip = np.where(np.linalg.det(axes) < 0, -1.0, 1.0)[:, None]
-        axes = np.concatenate([axes[..., :2], axes[..., 2:] * flip[..., None]], axis=-1)
-        # keep the columns' signs and order those of the mesh's principal axes
-        signs = np.sign(np.einsum("nij,ij->nj", axes, self.axes))
-        signs[signs == 0] = 1.0
-        axes = axes * signs[:, None, :]
-        axes[:, :, 2] *= np.sign(np.linalg.det(axes))[:, None]
-        ratios = np.stack([inertia_ratios(m) for m in moments])  # (3, 3): three bodies
+        principal = PrincipalInertia.from_inertia(trace * np.eye(3) - sigma)
+        axes, ratios = principal.axes, principal.ratios
         if "inertia" in self.estimate:
             ratios = ratios_from_tanh(self._values(theta, "inertia").T.reshape(n, 2))
         if "tilt" in self.estimate:
@@ -335,7 +327,7 @@ class AdjustableShape:
                 out[name] = float(theta[self._index[name]])
         if "inertia" in self.estimate:
             k = theta[[self._index["k1"], self._index["k2"]]]
-            moments = _moments_from_tanh(k)
+            moments = np.diag(inertia_from_tanh(k))
             out["inertia_ratio_1"] = float(moments[0] / moments[2])
             out["inertia_ratio_2"] = float(moments[1] / moments[2])
         if "tilt" in self.estimate:
@@ -380,12 +372,3 @@ class AdjustableShape:
             name: {"value": value, "sigma": float(math.sqrt(max(v, 0.0)))}
             for (name, value), v in zip(base.items(), variance, strict=True)
         }
-
-
-def _moments_from_tanh(k: np.ndarray) -> np.ndarray:
-    """Principal moments (any scale) of the tanh parameters ``k``: solve
-    ``p = [(J₂ − J₃)/J₁, (J₃ − J₁)/J₂, (J₁ − J₂)/J₃]`` with ``J₃ = 1``."""
-    p1, p2, _ = ratios_from_tanh(np.asarray(k, dtype=float))
-    # J₂ − 1 = p1 J₁ and 1 − J₁ = p2 J₂  ⇒  J₁ = (1 − p2)/(1 + p1 p2), J₂ = 1 + p1 J₁
-    j1 = (1.0 - p2) / (1.0 + p1 * p2)
-    return np.array([j1, 1.0 + p1 * j1, 1.0])
