@@ -44,6 +44,11 @@ class InversionOptions:
     init_window_s : float
         Longest window of the UKF/MMAE initial fit (s); at most half the data span is
         used, the filter takes over after it.
+    search_turn_deg : float
+        UKF/MMAE without ``q0``: when the slowest plausible initial fit turns less than this in
+        ``init_window_s``, the search is run again on windows up to the time it takes to
+        turn this much (at most half the data span): a slow rotator seen over less than a
+        turn leaves many states that fit equally well. 0 disables.
     pf_window_s : float
         Longest window of the PF's initial search (s), at most the whole arc. The search
         only proposes where the particles start (they are weighted back to the prior) and
@@ -195,6 +200,7 @@ class InversionOptions:
 
     init: str = "search"
     init_window_s: float = 300.0
+    search_turn_deg: float = 360.0
     pf_window_s: float = 1200.0
     pf_window_growth: float = 1.5
     pf_rate_scales: tuple[float, ...] = (1.0, 0.25)
@@ -216,7 +222,7 @@ class InversionOptions:
     underweighting: float = 0.0
     gate_probability: float = 1e-4
     estimate: tuple[str, ...] = ("inertia", "scale")
-    model_tolerance_mag: float = 0.05
+    model_tolerance_mag: float = 0.03
     adaptive_noise: bool = True
     estimate_inertia: bool = False
     inertia_sigma: float = 0.5
@@ -265,6 +271,8 @@ class InversionOptions:
             raise ValueError(
                 f"model_tolerance_mag must be finite and ≥ 0, got {self.model_tolerance_mag}"
             )
+        if not (math.isfinite(self.search_turn_deg) and self.search_turn_deg >= 0):
+            raise ValueError(f"search_turn_deg must be finite and ≥ 0, got {self.search_turn_deg}")
         if self.likelihood not in ("gaussian", "student"):
             raise ValueError(f"likelihood must be 'gaussian' or 'student', got {self.likelihood!r}")
 
@@ -297,6 +305,7 @@ _FILTER = frozenset(
     {
         "init",
         "init_window_s",
+        "search_turn_deg",
         "search_min_improvement",
         "process_noise_attitude",
         "process_noise_rate",

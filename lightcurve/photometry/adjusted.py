@@ -20,6 +20,7 @@ model under a vector ``θ`` of unconstrained adjustments, any of
 ``"material"``
     every BRDF parameter of every material, ``p = p₀ exp(u)`` within the parameter's
     physical range (reflectances: prior 1σ 30 %; lobe exponents and widths: a factor 2);
+    the two exponents of an isotropic lobe (``nu = nv``) share one ``u``;
 ``"inertia"``
     the tanh inertia parameters ``k`` of Feng et al. (always physical), replacing the
     ratios of the (stretched) mesh at uniform density;
@@ -47,6 +48,7 @@ from brdf.registry import describe
 from filters.attitude import (
     PrincipalInertia,
     inertia_from_tanh,
+    inertia_ratios,
     ratios_from_tanh,
     rotation_vector_to_quaternion,
     tanh_from_inertia,
@@ -68,6 +70,9 @@ STRETCH_BOUND = math.log(1.3)
 REFLECTANCE_SIGMA = math.log(1.3)
 #: Prior 1σ of ``u`` of a lobe exponent or width (a factor 2).
 EXPONENT_SIGMA = math.log(2.0)
+#: Lobe exponents that one parameter adjusts together when the library's are equal (an
+#: isotropic Ashikhmin–Shirley lobe, ``nu = nv``, stays isotropic).
+_ISOTROPIC = {"nu": "nv", "nv": "nu"}
 
 
 @dataclass(frozen=True)
@@ -79,7 +84,8 @@ class Parameter:
     name : str
         ``"k1"``, ``"k2"``, ``"tilt_x"`` … ``"tilt_z"``, ``"magnitude_offset"``,
         ``"stretch_1"`` … ``"stretch_3"`` (principal axes in ascending moment order) or
-        ``"<material>.<parameter>"``.
+        ``"<material>.<parameter>"`` (``"<material>.nu=nv"`` for the one exponent of an
+        isotropic lobe).
     kind : str
         Its adjustment (one of :data:`ADJUSTMENTS`).
     initial : float
@@ -115,6 +121,12 @@ class AdjustableShape:
     Attributes
     ----------
     parameters : list of Parameter
+    estimate : tuple of str
+        The adjustments freed, in the order of :data:`ADJUSTMENTS`.
+    left_out : dict
+        Adjustments asked for but not freed for this shape, name → reason: ``"inertia"``
+        of a flat body (``J3 = J1 + J2``, the perpendicular-axis theorem), whose ratios the
+        tanh form cannot represent (it would start the fit at a disc's inertia).
     shadows : {"none", "table", "exact"}
         How shadows are evaluated (the renderer's ``"auto"`` choice).
     """
@@ -135,7 +147,18 @@ class AdjustableShape:
                 f"unknown adjustment(s) {', '.join(unknown)}; choose from {', '.join(ADJUSTMENTS)}"
             )
         self.shape = shape
-        self.estimate = tuple(a for a in ADJUSTMENTS if a in estimate)
+        moments = np.asarray(shape.principal_moments, dtype=float)
+        k_mesh = tanh_from_inertia(moments, margin=1e-6)
+        self.left_out: dict[str, str] = {}
+        if "inertia" in estimate and not np.allclose(
+            ratios_from_tanh(k_mesh), inertia_ratios(moments), atol=1e-3
+        ):
+            self.left_out["inertia"] = (
+                f"{shape.name}: its principal moments {np.round(moments, 6).tolist()} meet the "
+                "triangle inequality with equality (a flat body), which the tanh form cannot "
+                "represent: its inertia ratios are kept"
+            )
+        self.estimate = tuple(a for a in ADJUSTMENTS if a in estimate and a not in self.left_out)
         compiled = shape.compiled()
         self.compiled = compiled
         self.axes = np.asarray(shape.principal_axes, dtype=float)
@@ -148,9 +171,8 @@ class AdjustableShape:
         self._materials = [(m.brdf, dict(m.params)) for m in compiled.materials]
         params: list[Parameter] = []
         if "inertia" in self.estimate:
-            k = tanh_from_inertia(np.asarray(shape.principal_moments, dtype=float), margin=1e-6)
             params += [
-                Parameter(f"k{i + 1}", "inertia", float(k[i]), inertia_sigma) for i in (0, 1)
+                Parameter(f"k{i + 1}", "inertia", float(k_mesh[i]), inertia_sigma) for i in (0, 1)
             ]
         if "tilt" in self.estimate:
             sigma = math.radians(tilt_sigma_deg)
@@ -159,19 +181,28 @@ class AdjustableShape:
             params.append(Parameter("magnitude_offset", "scale", 0.0, offset_sigma_mag))
         if "stretch" in self.estimate:
             params += [Parameter(f"stretch_{i}", "stretch", 0.0, stretch_sigma) for i in (1, 2, 3)]
-        self._material_slots: list[tuple[int, str, float, float, float]] = []
+        self._material_slots: list[tuple[int, tuple[str, ...], float, float, float]] = []
         if "material" in self.estimate:
             for index, (kind, values) in enumerate(self._materials):
                 label = compiled.materials[index].name or f"material{index}"
-                for spec in describe(kind).parameters:
+                specs = {spec.name: spec for spec in describe(kind).parameters}
+                for spec in specs.values():
                     value = float(values.get(spec.name, spec.default))
                     if not (value > 0 and math.isfinite(value)):
                         continue  # a zero term stays zero: nothing to scale
+                    names: tuple[str, ...] = (spec.name,)
+                    pair = _ISOTROPIC.get(spec.name)
+                    if pair is not None and pair in specs:
+                        other = float(values.get(pair, specs[pair].default))
+                        if other == value and spec.name < pair:
+                            names = (spec.name, pair)  # an isotropic lobe stays isotropic
+                        elif other == value:
+                            continue
                     sigma = EXPONENT_SIGMA if spec.log_scale else REFLECTANCE_SIGMA
                     self._material_slots.append(
-                        (index, spec.name, value, float(spec.lower), float(spec.upper))
+                        (index, names, value, float(spec.lower), float(spec.upper))
                     )
-                    params.append(Parameter(f"{label}.{spec.name}", "material", 0.0, sigma))
+                    params.append(Parameter(f"{label}.{'='.join(names)}", "material", 0.0, sigma))
         self.parameters = params
         self._index = {p.name: i for i, p in enumerate(params)}
 
@@ -241,11 +272,12 @@ class AdjustableShape:
         values = [dict(v) for _, v in self._materials]
         if self._material_slots:
             u = self._values(theta, "material").reshape(-1)
-            for (index, name, value, lower, upper), step in zip(
+            for (index, names, value, lower, upper), step in zip(
                 self._material_slots, u, strict=True
             ):
                 span = np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf)
-                values[index][name] = float(np.clip(value * math.exp(step), *span))
+                for name in names:
+                    values[index][name] = float(np.clip(value * math.exp(step), *span))
             for v in values:  # energy conservation of the two-lobe models
                 if "rd" in v and "rs" in v and v["rd"] + v["rs"] > 1.0:
                     total = v["rd"] + v["rs"]
@@ -344,7 +376,7 @@ class AdjustableShape:
                 (p for p in self.parameters if p.kind == "material"),
                 strict=True,
             ):
-                out[p.name] = float(models[slot[0]].params[slot[1]])
+                out[p.name] = float(models[slot[0]].params[slot[1][0]])
         return out
 
     def describe(self, theta: Any, covariance: Any) -> dict[str, dict[str, float]]:

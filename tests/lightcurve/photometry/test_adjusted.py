@@ -119,3 +119,30 @@ def test_describe_propagates_sigma() -> None:
 def test_unknown_adjustment() -> None:
     with pytest.raises(ValueError, match="unknown adjustment"):
         AdjustableShape(get_library().load("box"), ("stretch", "colour"))
+
+
+def test_an_isotropic_lobe_stays_isotropic() -> None:
+    shape = get_library().load("box")
+    adjustable = AdjustableShape(shape, ("material",))
+    names = adjustable.names
+    assert "MLI.nu=nv" in names
+    assert not {"MLI.nu", "MLI.nv"} & set(names)
+    theta = adjustable.initial.copy()
+    theta[names.index("MLI.nu=nv")] = np.log(1.7)
+    (model,) = adjustable.materials(theta)
+    (library,) = adjustable.materials(adjustable.initial)
+    assert model.params["nu"] == model.params["nv"]
+    assert model.params["nu"] == pytest.approx(1.7 * library.params["nu"])
+    assert adjustable.physical(theta)["MLI.nu=nv"] == pytest.approx(model.params["nu"])
+
+
+def test_a_flat_body_keeps_its_inertia() -> None:
+    """J3 = J1 + J2 (a plate) has no tanh form: a fit started there would start at a disc."""
+    plate = get_library().load("plate")
+    adjustable = AdjustableShape(plate, ("inertia", "scale"))
+    assert adjustable.estimate == ("scale",)
+    assert "triangle inequality" in adjustable.left_out["inertia"]
+    ratios = adjustable.principal_inertia(adjustable.initial[None]).ratios[0]
+    np.testing.assert_allclose(ratios, inertia_ratios(plate.principal_moments), atol=1e-9)
+    box = AdjustableShape(get_library().load("box"), ("inertia", "scale"))
+    assert box.estimate == ("inertia", "scale") and not box.left_out
