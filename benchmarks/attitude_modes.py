@@ -68,6 +68,7 @@ from scipy.stats import chi2 as chi2_distribution
 from scipy.stats import norm
 
 from benchmarks._machine import machine_info
+from benchmarks._orbits import random_low_orbit
 from filters.attitude import (
     attitude_angle,
     quaternion_canonical,
@@ -116,8 +117,6 @@ MIN_PASS_POINTS = 20
 PASS_GAP_S = 600.0
 #: LEO draws tried per object before giving up.
 MAX_ORBIT_DRAWS = 200
-LEO_ALTITUDE_KM = (500.0, 1200.0)
-LEO_INCLINATION_DEG = (45.0, 100.0)
 
 
 def _night(rng: np.random.Generator, cadence_s: float) -> tuple[float, np.ndarray]:
@@ -176,13 +175,7 @@ def leo_object(rng: np.random.Generator, cadence_s: float, draw: Callable):
     start, mjd = _night(rng, cadence_s)
     site = get_site("Mount Lemmon")
     for rejections in range(MAX_ORBIT_DRAWS):
-        orbit = CircularOrbit(
-            EARTH_RADIUS_KM + float(rng.uniform(*LEO_ALTITUDE_KM)),
-            float(rng.uniform(*LEO_INCLINATION_DEG)),
-            float(rng.uniform(0.0, 360.0)),
-            float(rng.uniform(0.0, 360.0)),
-            start,
-        )
+        orbit = random_low_orbit(rng, start)
         try:
             geometry = orbit_geometry(orbit, site, mjd, "leo-box-wing")
         except ValueError:  # no epoch sunlit, above 10° and in darkness

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._orbits import random_low_orbit
 from filters.attitude import (
     quaternion_conjugate,
     quaternion_multiply,
@@ -84,8 +85,6 @@ NOISE_MAG = 0.03
 CADENCE_S = 2.0
 GEO_DURATION_S = 2400.0
 RATE_DEG_S = (0.3, 1.5)
-LEO_ALTITUDE_KM = (500.0, 1200.0)
-LEO_INCLINATION_DEG = (45.0, 100.0)
 LEO_MIN_PASS_S = 300.0
 #: Step (s) of the scan of a night for low-orbit passes.
 LEO_SCAN_STEP_S = 20.0
@@ -189,13 +188,7 @@ def leo_geometry(
     up = _unit(r_site)
     dark = np.sum(up * _unit(r_sun), axis=1) <= math.sin(math.radians(-12.0))
     for draws in range(MAX_GEOMETRY_DRAWS):
-        orbit = CircularOrbit(
-            EARTH_RADIUS_KM + float(rng.uniform(*LEO_ALTITUDE_KM)),
-            float(rng.uniform(*LEO_INCLINATION_DEG)),
-            float(rng.uniform(0.0, 360.0)),
-            float(rng.uniform(0.0, 360.0)),
-            night,
-        )
+        orbit = random_low_orbit(rng, night)
         r_obj = orbit.position(scan)
         high = np.sum(up * _unit(r_obj - r_site), axis=1) >= math.sin(math.radians(10.0))
         lit = ~earth_shadow(r_obj, r_sun, "cylindrical").in_umbra

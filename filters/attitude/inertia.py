@@ -254,7 +254,10 @@ def tanh_from_inertia(inertia: Any, margin: float = 0.0) -> Any:
         is one tensor, as for :func:`inertia_ratios`).
     margin : float
         With ``margin > 0`` the ratios are clipped to ``[−1 + margin, 1 − margin]`` instead
-        of raising: the nearest tanh form of a degenerate (plate-like) body.
+        of raising: the nearest tanh form of a degenerate (plate-like) body. A flat body
+        (``J3 = J1 + J2``, both ``px = −1`` and ``py = 1``) keeps its third ratio
+        ``pz = tanh(k2 − k1)``: ``k2 = −atanh(−1 + margin)``, ``k1 = k2 − atanh(pz)``
+        (clipping ``py`` as well would make every flat body a disc, ``pz = 0``).
 
     Returns
     -------
@@ -274,7 +277,11 @@ def tanh_from_inertia(inertia: Any, margin: float = 0.0) -> Any:
             raise InertiaError("tanh form needs a principal-axis (diagonal) inertia tensor")
     p = inertia_ratios(j)
     if margin > 0:
+        inside = (xp.abs(p[..., 0]) < 1.0 - margin) & (xp.abs(p[..., 1]) < 1.0 - margin)
         p = xp.clip(p, -1.0 + margin, 1.0 - margin)
+        k2 = -xp.atanh(p[..., 0])
+        k1 = xp.where(inside, xp.atanh(p[..., 1]), k2 - xp.atanh(p[..., 2]))
+        return xp.stack([k1, k2], axis=-1)
     if isinstance(p, np.ndarray) and not np.all(np.abs(p[..., :2]) < 1):
         raise InertiaError(
             f"inertia ratios {p.tolist()} are not inside (-1, 1): the triangle inequalities "

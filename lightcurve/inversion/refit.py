@@ -125,7 +125,6 @@ def refit_arc(ctx: Context, bank: MultipleModelBank, found: SearchResult | None 
             offset_sigma_mag=opt.offset_sigma_mag,
         )
         adjustables.append(adjustable)
-        ctx.notes.extend(adjustable.left_out.values())
         if name in bank.dropped:
             fits.append(None)
             continue

@@ -48,7 +48,6 @@ from brdf.registry import describe
 from filters.attitude import (
     PrincipalInertia,
     inertia_from_tanh,
-    inertia_ratios,
     ratios_from_tanh,
     rotation_vector_to_quaternion,
     tanh_from_inertia,
@@ -123,10 +122,6 @@ class AdjustableShape:
     parameters : list of Parameter
     estimate : tuple of str
         The adjustments freed, in the order of :data:`ADJUSTMENTS`.
-    left_out : dict
-        Adjustments asked for but not freed for this shape, name → reason: ``"inertia"``
-        of a flat body (``J3 = J1 + J2``, the perpendicular-axis theorem), whose ratios the
-        tanh form cannot represent (it would start the fit at a disc's inertia).
     shadows : {"none", "table", "exact"}
         How shadows are evaluated (the renderer's ``"auto"`` choice).
     """
@@ -147,18 +142,7 @@ class AdjustableShape:
                 f"unknown adjustment(s) {', '.join(unknown)}; choose from {', '.join(ADJUSTMENTS)}"
             )
         self.shape = shape
-        moments = np.asarray(shape.principal_moments, dtype=float)
-        k_mesh = tanh_from_inertia(moments, margin=1e-6)
-        self.left_out: dict[str, str] = {}
-        if "inertia" in estimate and not np.allclose(
-            ratios_from_tanh(k_mesh), inertia_ratios(moments), atol=1e-3
-        ):
-            self.left_out["inertia"] = (
-                f"{shape.name}: its principal moments {np.round(moments, 6).tolist()} meet the "
-                "triangle inequality with equality (a flat body), which the tanh form cannot "
-                "represent: its inertia ratios are kept"
-            )
-        self.estimate = tuple(a for a in ADJUSTMENTS if a in estimate and a not in self.left_out)
+        self.estimate = tuple(a for a in ADJUSTMENTS if a in estimate)
         compiled = shape.compiled()
         self.compiled = compiled
         self.axes = np.asarray(shape.principal_axes, dtype=float)
@@ -171,8 +155,9 @@ class AdjustableShape:
         self._materials = [(m.brdf, dict(m.params)) for m in compiled.materials]
         params: list[Parameter] = []
         if "inertia" in self.estimate:
+            k = tanh_from_inertia(np.asarray(shape.principal_moments, dtype=float), margin=1e-6)
             params += [
-                Parameter(f"k{i + 1}", "inertia", float(k_mesh[i]), inertia_sigma) for i in (0, 1)
+                Parameter(f"k{i + 1}", "inertia", float(k[i]), inertia_sigma) for i in (0, 1)
             ]
         if "tilt" in self.estimate:
             sigma = math.radians(tilt_sigma_deg)

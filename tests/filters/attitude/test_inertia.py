@@ -108,6 +108,18 @@ def test_thin_plate_is_physical_but_has_no_tanh_form():
         tanh_from_inertia(J_NUTATION)
 
 
+def test_the_nearest_tanh_form_of_a_plate_keeps_its_third_ratio():
+    """With a margin, a flat body (J3 = J1 + J2) gets a tanh form whose ratios are the
+    plate's to the margin, not a disc's (pz = 0); a body inside the triangle is unchanged."""
+    for moments in ([1.0, 2.0, 3.0], [1.0, 4.0, 5.0], [1.0, 1.0, 2.0]):
+        k = tanh_from_inertia(np.array(moments), margin=1e-6)
+        np.testing.assert_allclose(
+            ratios_from_tanh(k), inertia_ratios(np.array(moments)), atol=1e-5
+        )
+    body = np.array([1.0, 2.0, 2.5])
+    np.testing.assert_array_equal(tanh_from_inertia(body, margin=1e-6), tanh_from_inertia(body))
+
+
 def test_tanh_is_differentiable_in_torch():
     k = torch.tensor([0.3, -0.2], dtype=torch.float64, requires_grad=True)
     ratios_from_tanh(k).sum().backward()

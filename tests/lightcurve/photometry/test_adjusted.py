@@ -137,12 +137,9 @@ def test_an_isotropic_lobe_stays_isotropic() -> None:
 
 
 def test_a_flat_body_keeps_its_inertia() -> None:
-    """J3 = J1 + J2 (a plate) has no tanh form: a fit started there would start at a disc."""
+    """J3 = J1 + J2 (a plate): the fit starts at the plate's inertia ratios, not a disc's."""
     plate = get_library().load("plate")
     adjustable = AdjustableShape(plate, ("inertia", "scale"))
-    assert adjustable.estimate == ("scale",)
-    assert "triangle inequality" in adjustable.left_out["inertia"]
+    assert adjustable.estimate == ("inertia", "scale")
     ratios = adjustable.principal_inertia(adjustable.initial[None]).ratios[0]
-    np.testing.assert_allclose(ratios, inertia_ratios(plate.principal_moments), atol=1e-9)
-    box = AdjustableShape(get_library().load("box"), ("inertia", "scale"))
-    assert box.estimate == ("inertia", "scale") and not box.left_out
+    np.testing.assert_allclose(ratios, inertia_ratios(plate.principal_moments), atol=1e-5)
