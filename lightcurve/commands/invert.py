@@ -130,7 +130,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         metavar="MAG",
         help="ukf, mmae: rms model error (mag, beyond the measurement errors) above which a "
-        "candidate does not fit (default: 0.05)",
+        "candidate does not fit (default: 0.03)",
+    )
+    parser.add_argument(
+        "--rescue",
+        type=int,
+        metavar="N",
+        help="ukf, mmae: when no candidate fits, continue the N best initial fits of each "
+        "candidate to the whole arc again with the --rescue-estimate adjustments; slower "
+        "(10-60 s per candidate) (default: 0, off)",
+    )
+    parser.add_argument(
+        "--rescue-estimate",
+        type=adjustment_list,
+        metavar="LIST",
+        help="ukf, mmae: the adjustments of the rescue fit, as --estimate (default: "
+        "inertia,scale,material)",
     )
     parser.add_argument(
         "--particles", type=int, metavar="N", help="particle count (pf) (default: 2000)"
@@ -189,6 +204,8 @@ def run(args: argparse.Namespace) -> int:
         "mode_weak_sigma_deg": args.mode_weak_sigma,
         "estimate": args.estimate,
         "model_tolerance_mag": args.model_tolerance,
+        "rescue_starts": args.rescue,
+        "rescue_estimate": args.rescue_estimate,
     }
     options = InversionOptions(**{k: v for k, v in tuning.items() if v is not None})
     # The library's own checks of the request, at start rather than once per input.

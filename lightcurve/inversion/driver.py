@@ -23,7 +23,7 @@ from lightcurve.inversion.context import (
 )
 from lightcurve.inversion.options import InversionOptions, validate_request
 from lightcurve.inversion.particles import run_pf
-from lightcurve.inversion.result import InversionResult
+from lightcurve.inversion.result import InversionResult, unknown_state_uncertainty
 from lightcurve.io.observations import Observations
 from lightcurve.photometry.measurement import PhotometricModel
 from shapes import FacetModel
@@ -141,6 +141,7 @@ def invert(
         ctx.report(0.95, "attitude modes")
         _attitude_modes(ctx, result)
         result.runtime_s = time.perf_counter() - start
+    unknown_state_uncertainty(ctx, result)
     ctx.report(1.0, "done")
     return result
 

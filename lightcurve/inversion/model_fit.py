@@ -325,6 +325,7 @@ def fit_arc_growing(
     *,
     omega_max: float = math.radians(5.0),
     growth: float = 2.0,
+    band: float | None = None,
 ) -> list[ArcFit]:
     """:func:`fit_arc` of states at the FIRST epoch fitted on its first ``first_window`` s,
     continued on windows growing ``growth``-fold to the whole arc, then moved to the last
@@ -334,10 +335,18 @@ def fit_arc_growing(
     window turns into an attitude error outside the basin of Levenberg–Marquardt; growing
     gently keeps every fit in the basin of the next (the schedule of the initial search).
 
+    With ``band``, a fit is continued to the next window only when its misfit is within
+    ``band`` standard deviations of a ``χ²`` variable of the best fit's: ``χ² ≤ χ²_min
+    (1 + band √(2/E))`` on the window's ``E`` measurements (scaled by the best misfit, so
+    that a model error common to all fits does not keep them all). Keeping only the best
+    half instead lost the true start on a 120 s window, where a wrong state fitted the 60
+    measurements better than the truth.
+
     Returns
     -------
     list of ArcFit
-        One per start, states at the last epoch.
+        One per start continued to the whole arc (every start without ``band``, in order;
+        otherwise the survivors, best first), states at the last epoch.
     """
     times = model.times
     span = float(times[-1] - times[0])
@@ -356,9 +365,10 @@ def fit_arc_growing(
             epochs=epochs,
             max_iterations=15,
         )
-        q = np.stack([f.quaternion for f in fits])
-        omega = np.stack([f.omega for f in fits])
-        theta = np.stack([f.theta for f in fits])
+        survivors = slice(None) if band is None else _within_band(fits, band, len(epochs))
+        q = np.stack([f.quaternion for f in fits])[survivors]
+        omega = np.stack([f.omega for f in fits])[survivors]
+        theta = np.stack([f.theta for f in fits])[survivors]
         window *= growth
     if theta is None:
         theta = np.tile(adjustable.initial, (len(q), 1))
@@ -373,6 +383,14 @@ def fit_arc_growing(
         theta,
         omega_max=omega_max,
     )
+
+
+def _within_band(fits: list[ArcFit], band: float, n: int) -> np.ndarray:
+    """Indices of the fits whose ``χ²`` on ``n`` measurements is within ``band`` standard
+    deviations of the best (see :func:`fit_arc_growing`), best first."""
+    chi2 = np.array([f.chi2 for f in fits])
+    order = np.argsort(chi2, kind="stable")
+    return order[chi2[order] <= chi2[order[0]] * (1.0 + band * math.sqrt(2.0 / n))]
 
 
 def arc_states(

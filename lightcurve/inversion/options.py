@@ -138,6 +138,14 @@ class InversionOptions:
         A candidate whose whole-arc fit leaves an rms model error (mag, beyond the
         measurement errors) above this does not fit: ``none_fits`` when no candidate
         passes.
+    rescue_starts : int
+        UKF/MMAE: when no candidate fits after the whole-arc fit, this many of each
+        candidate's best initial fits are continued to the whole arc again, with the
+        adjustments ``rescue_estimate`` freed, those clearly worse than the best dropped at
+        every doubling of the window (:func:`lightcurve.inversion.model_fit.fit_arc_growing`);
+        a fit with a smaller model error replaces the candidate's. 0 (the default) disables.
+    rescue_estimate : tuple of str
+        The adjustments of that second fit (as ``estimate``).
     adaptive_noise : bool
         UKF/MMAE: estimate each candidate's model-error variance online from its
         innovations (covariance matching, Mehra 1970; Mohamed & Schwarz 1999) and add it
@@ -223,6 +231,8 @@ class InversionOptions:
     gate_probability: float = 1e-4
     estimate: tuple[str, ...] = ("inertia", "scale")
     model_tolerance_mag: float = 0.03
+    rescue_starts: int = 0
+    rescue_estimate: tuple[str, ...] = ("inertia", "scale", "material")
     adaptive_noise: bool = True
     estimate_inertia: bool = False
     inertia_sigma: float = 0.5
@@ -261,12 +271,15 @@ class InversionOptions:
             raise ValueError(f"pf_rate_scales must be in (0, 1], got {self.pf_rate_scales!r}")
         from lightcurve.photometry.adjusted import ADJUSTMENTS
 
-        unknown = sorted(set(self.estimate) - set(ADJUSTMENTS))
-        if unknown:
-            raise ValueError(
-                f"unknown adjustment(s) in estimate: {', '.join(unknown)}; choose from "
-                + ", ".join(ADJUSTMENTS)
-            )
+        for key in ("estimate", "rescue_estimate"):
+            unknown = sorted(set(getattr(self, key)) - set(ADJUSTMENTS))
+            if unknown:
+                raise ValueError(
+                    f"unknown adjustment(s) in {key}: {', '.join(unknown)}; choose from "
+                    + ", ".join(ADJUSTMENTS)
+                )
+        if self.rescue_starts < 0:
+            raise ValueError(f"rescue_starts must be ≥ 0, got {self.rescue_starts}")
         if not (math.isfinite(self.model_tolerance_mag) and self.model_tolerance_mag >= 0):
             raise ValueError(
                 f"model_tolerance_mag must be finite and ≥ 0, got {self.model_tolerance_mag}"
@@ -319,6 +332,8 @@ _FILTER = frozenset(
         "offset_sigma_mag",
         "estimate",
         "model_tolerance_mag",
+        "rescue_starts",
+        "rescue_estimate",
         "adaptive_noise",
     }
 )

@@ -16,6 +16,12 @@ from filters.attitude import (
 from filters.symmetry import SymmetryGroup
 from lightcurve.inversion.context import Context
 
+#: Per-axis variance (rad²) of the rotation-vector error of an attitude distributed uniformly
+#: on SO(3): the rotation angle ``θ`` has the density ``(1 − cos θ)/π`` on ``[0, π]`` (Miles
+#: 1965, "On random rotations in R³", Biometrika 52, 636), so ``E[θ²] = π²/3 + 2`` and each
+#: of the three components carries a third of it (1σ 76.1° per axis, 131.8° in total).
+UNKNOWN_ATTITUDE_VARIANCE = (math.pi**2 / 3.0 + 2.0) / 3.0
+
 
 @dataclass
 class InversionResult:
@@ -166,4 +172,34 @@ def make_result(
         symmetry=group.to_dict(),
         covariance=np.asarray(covariance, dtype=float)[:6, :6],
         runtime_s=time.perf_counter() - ctx.start,
+    )
+
+
+def unknown_state_uncertainty(ctx: Context, result: InversionResult) -> None:
+    """Give an answer that no candidate fits (``none_fits``) the uncertainty of an unknown
+    state, in its summary and in every row of its table.
+
+    The local 1σ of a fit bounds its error only when the model explains the data: the best
+    fit of a model that does not (a real object is never exactly its library model) can end
+    in any basin, and on such objects the search's and the filters' answers were measured
+    60–150° off with a local 1σ of 1–5°. The reported uncertainty is then that of an
+    attitude distributed uniformly on SO(3) (:data:`UNKNOWN_ATTITUDE_VARIANCE` per axis) and
+    of rates uniform in the search's ball ``|ω| ≤ omega_max`` (``omega_max²/5`` per axis);
+    the local 1σ is kept in the notes.
+    """
+    if not result.none_fits:
+        return
+    local = result.attitude_sigma_deg
+    variance = np.array([UNKNOWN_ATTITUDE_VARIANCE] * 3 + [ctx.omega_max**2 / 5.0] * 3)
+    sigma = np.sqrt(variance)
+    result.covariance = np.diag(variance)
+    result.attitude_sigma_deg = math.degrees(math.sqrt(variance[:3].sum()))
+    result.omega_sigma_rad_s = sigma[3:].copy()
+    for i, axis in enumerate("xyz"):
+        result.estimates[f"sigma_att_{axis}"] = math.degrees(sigma[i])
+        result.estimates[f"sigma_w{axis}"] = sigma[3 + i]
+    result.notes.append(
+        f"no candidate fits: the local 1σ of the best fit ({local:.2f}°) does not bound its "
+        "error, so the state is reported with the uncertainty of an unknown one (attitude "
+        "uniform on SO(3), rates uniform within omega_max)"
     )

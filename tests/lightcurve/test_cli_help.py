@@ -89,7 +89,7 @@ def test_options_with_library_defaults_state_them():
 
 
 def test_invert_help_states_the_library_defaults():
-    from lightcurve.inversion import invert
+    from lightcurve.inversion import InversionOptions, invert
 
     defaults = inspect.signature(invert).parameters
     stated = {
@@ -97,11 +97,15 @@ def test_invert_help_states_the_library_defaults():
         "--attitude-sigma-deg": defaults["attitude_sigma_deg"].default,
         "--omega-sigma": math.degrees(defaults["omega_sigma"].default),
         "--omega-max": math.degrees(defaults["omega_max"].default),
+        "--model-tolerance": InversionOptions().model_tolerance_mag,
+        "--rescue": InversionOptions().rescue_starts,
     }
     parser = dict(ALL)["lightcurve invert"]
     for option, value in stated.items():
         action = next(a for a in parser._actions if option in a.option_strings)
-        assert f"(default: {value:g})" in action.help, f"{option}: {action.help!r} vs {value}"
+        assert f"(default: {value:g}" in action.help, f"{option}: {action.help!r} vs {value}"
+    action = next(a for a in parser._actions if "--rescue-estimate" in a.option_strings)
+    assert f"(default: {','.join(InversionOptions().rescue_estimate)})" in action.help
 
 
 def test_out_is_the_output_option_everywhere():

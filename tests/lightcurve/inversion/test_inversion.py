@@ -137,6 +137,27 @@ def test_ukf_result_fields(sample):
     assert isinstance(result.summary()["quaternion"], list)
 
 
+def test_an_answer_no_candidate_fits_reports_the_uncertainty_of_an_unknown_state(sample):
+    """A box-wing's light curve inverted with a plate: no candidate fits, and the
+    reported uncertainty is that of an unknown state (not the local one of a fit to the
+    wrong model), in the summary and in every row of the table."""
+    observations, truth = sample
+    result = invert(
+        observations, "plate", "ukf", q0=truth.q_prior, omega0=truth.omega_prior, **LIGHT
+    )
+    assert result.none_fits
+    # Rotation angle of a uniform rotation: density (1 − cos θ)/π on [0, π].
+    theta = np.linspace(0.0, math.pi, 200001)
+    mean_square = np.trapezoid(theta**2 * (1.0 - np.cos(theta)) / math.pi, theta)
+    assert result.attitude_sigma_deg == pytest.approx(math.degrees(math.sqrt(mean_square)))
+    omega_max = math.radians(5.0)
+    assert np.allclose(result.omega_sigma_rad_s, omega_max / math.sqrt(5.0))
+    assert np.allclose(np.diag(result.covariance)[:3], mean_square / 3.0)
+    table = result.estimates[["sigma_att_x", "sigma_att_y", "sigma_att_z"]].to_numpy(float)
+    assert np.allclose(np.radians(table) ** 2, mean_square / 3.0)
+    assert any("uncertainty of an unknown one" in n for n in result.notes)
+
+
 def test_mmae_picks_the_true_shape_and_flags_a_truth_outside_the_bank():
     """MMAE study, reduced: a bank of the six library satellites, 6-min arcs; the truth
     inside the bank ends with p ≥ 0.9, a truth outside it (Itokawa in place of the
