@@ -200,11 +200,12 @@ def invert_file(
 ) -> dict[str, Any]:
     """Invert one observation file and write its estimates (see the module docstring).
 
-    A file whose header names its object's shape (``# shape: NAME``, as ``lightcurve
-    simulate`` writes) must name a shape of the library; with ``job.shape_names`` None
-    that shape is the file's only candidate. ``options`` (default: the defaults) tune the
-    inversion. ``progress(fraction, message)``, when given, is handed to
-    :func:`~lightcurve.inversion.invert`.
+    With ``job.shape_names`` None, the shape a file's header names (``# shape: NAME``, as
+    ``lightcurve simulate`` writes) is its only candidate and must be a shape of the
+    library; with candidates given, the header's shape is not used (an object simulated
+    from a shape the library does not have is inverted with the candidates). ``options``
+    (default: the defaults) tune the inversion. ``progress(fraction, message)``, when
+    given, is handed to :func:`~lightcurve.inversion.invert`.
 
     Returns
     -------
@@ -223,11 +224,6 @@ def invert_file(
     observations = io.read(input_path, drop_bad_rows=job.drop_bad_rows)
     lib = get_library(job.library)
     declared = observations.meta.get("shape")
-    if declared is not None:
-        try:
-            lib.load(declared)
-        except ValueError as exc:
-            raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
     shape_names = job.shape_names
     if shape_names is None:
         if declared is None:
@@ -235,6 +231,10 @@ def invert_file(
                 f"{input_path}: no candidate shape: the file has no '# shape:' header and "
                 "none of --shape, --shapes, --all-shapes was given"
             )
+        try:
+            lib.load(declared)
+        except ValueError as exc:
+            raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
         shape_names = (declared,)
     candidates = {name: lib.load(name) for name in shape_names}
     result = invert(

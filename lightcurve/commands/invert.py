@@ -7,8 +7,8 @@ estimates.parquet (per-epoch estimates, covariance diagonal, predicted magnitude
 model probabilities). DIR/summary.csv has one row per input, failures included.
 
 The candidate shapes come from --shape, --shapes or --all-shapes; without them each file's
-'# shape: NAME' header names its shape. A header naming a shape the library does not have
-makes that input an error.
+'# shape: NAME' header names its shape, and a header naming a shape the library does not
+have makes that input an error (with candidates given, the header's shape is not used).
 
 The batch is resumable: inputs whose summary says "ok" are skipped unless --overwrite; all
 outputs are written atomically and a bad input is recorded as an error without stopping

@@ -95,6 +95,16 @@ def command(inputs: Path, out: Path, *extra: str) -> list[str]:
     ]
 
 
+def test_given_candidates_invert_a_file_whose_header_names_an_unknown_shape(inputs, tmp_path):
+    """The header's shape only stands in for missing candidates: with ``--shape`` given, a
+    file simulated from a shape the library lacks is inverted with that candidate."""
+    out = tmp_path / "out"
+    argv = command(inputs / "obj29.csv", out, "--shape", "box", "-q")
+    assert main(argv) == 0
+    record = json.loads((out / "obj29" / "summary.json").read_text())
+    assert record["status"] == "ok" and record["shape"] == "box", record
+
+
 def summaries(out: Path) -> dict[str, dict]:
     records = {}
     for path in sorted(out.glob("*/summary.json")):
