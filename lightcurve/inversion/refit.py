@@ -160,8 +160,12 @@ def refit_arc(ctx: Context, bank: MultipleModelBank, found: SearchResult | None 
             )
         fits.append(min(candidates, key=lambda f: f.chi2))
     live = [j for j, f in enumerate(fits) if f is not None]
-    fitting = [fits[j].model_error_mag <= opt.model_tolerance_mag for j in live]
-    if found is not None and opt.rescue_starts and not any(fitting):
+    tolerance = opt.model_tolerance_mag
+    if (
+        found is not None
+        and opt.rescue_starts
+        and all(fits[j].model_error_mag > tolerance for j in live)
+    ):
         _rescue(ctx, found, live, fits, adjustables)
     tempering = min(fits[j].inflation for j in live)
     log_w = np.full(len(fits), -np.inf)

@@ -68,8 +68,9 @@ class InversionResult:
         Fraction of the measurements the filters' innovation gate rejected (UKF/MMAE).
     model_error_mag : float
         rms magnitude misfit of the reported candidate beyond the measurement errors
-        (whole-arc fit; without it, the filter's covariance-matching estimate); NaN for the
-        PF.
+        (UKF/MMAE: the whole-arc fit's; without it, the filter's covariance-matching
+        estimate; PF: ``√max(0, rms² − σ̄²)`` of its per-epoch residuals, ``σ̄`` the rms
+        measurement 1σ of the measurements used).
     symmetry : dict
         Symmetry group of the reported shape (order, continuous axis, quaternions).
     covariance : (6, 6) numpy.ndarray
@@ -150,6 +151,8 @@ def make_result(
     candidate shape, in ``ctx.names`` order), the per-epoch table and the notes so far."""
     used = ~estimates["gated"].to_numpy(dtype=bool)
     residuals = estimates["residual"].to_numpy()[used]
+    rms = float(np.sqrt(np.mean(residuals**2))) if residuals.size else math.nan
+    noise = float(np.sqrt(np.mean(ctx.model.errors[used] ** 2))) if residuals.size else math.nan
     sigma_att = math.degrees(math.sqrt(max(float(np.trace(covariance[:3, :3])), 0.0)))
     if sigma_att > 10.0:
         ctx.notes.append(f"weakly observable: final attitude 1σ is {sigma_att:.1f}°")
@@ -164,7 +167,7 @@ def make_result(
         attitude_sigma_deg=sigma_att,
         omega_sigma_rad_s=np.sqrt(np.clip(np.diag(covariance)[3:6], 0.0, None)),
         modes=modes or [],
-        residual_rms_mag=float(np.sqrt(np.mean(residuals**2))) if residuals.size else math.nan,
+        residual_rms_mag=rms,
         n_measurements=len(ctx.model),
         estimates=estimates,
         notes=ctx.notes,
@@ -172,13 +175,13 @@ def make_result(
         symmetry=group.to_dict(),
         covariance=np.asarray(covariance, dtype=float)[:6, :6],
         runtime_s=time.perf_counter() - ctx.start,
+        model_error_mag=math.sqrt(max(rms**2 - noise**2, 0.0)),
     )
 
 
 def unknown_state_uncertainty(ctx: Context, result: InversionResult) -> None:
     """Give an answer that no candidate fits (``none_fits``) and whose model does not
-    explain the data (a model error above ``model_tolerance_mag``: the whole-arc fit's, or
-    for the PF the rms of its residuals beyond the measurement errors) the uncertainty of
+    explain the data (``model_error_mag`` above ``model_tolerance_mag``) the uncertainty of
     an unknown state, in its summary and in every row of its table.
 
     The local 1σ of a fit bounds its error only when the model explains the data: the best
@@ -194,9 +197,6 @@ def unknown_state_uncertainty(ctx: Context, result: InversionResult) -> None:
     if not result.none_fits:
         return
     misfit = result.model_error_mag
-    if not math.isfinite(misfit):  # the PF: the rms of its residuals beyond the noise
-        noise = float(np.sqrt(np.mean(ctx.model.errors**2)))
-        misfit = math.sqrt(max(result.residual_rms_mag**2 - noise**2, 0.0))
     if misfit <= ctx.options.model_tolerance_mag:
         result.notes.append(
             f"flagged by the consistency window, but the fit leaves {misfit:.3f} mag beyond "

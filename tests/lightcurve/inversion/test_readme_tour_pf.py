@@ -9,6 +9,7 @@ import shlex
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from lightcurve.cli import main
 from lightcurve.plots import load_result
@@ -41,3 +42,13 @@ def test_the_tour_particle_filter_finds_the_box_within_three_degrees(tmp_path):
     truth = result.observations.truth[-1]
     error = result.symmetry.attitude_error(np.asarray(summary["quaternion"]), truth[:4])
     assert math.degrees(float(error)) < 3.0, summary["notes"]
+    # the PF's model error: its residuals beyond the measurement errors (a CCD file whose
+    # object is exactly the box: near zero)
+    rms, noise = (
+        summary["residual_rms_mag"],
+        float(np.sqrt(np.mean(result.observations.magnitude_errors**2))),
+    )
+    assert summary["model_error_mag"] == pytest.approx(
+        math.sqrt(max(rms**2 - noise**2, 0.0)), abs=0.01
+    )
+    assert summary["model_error_mag"] < 0.03
