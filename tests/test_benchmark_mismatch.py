@@ -123,3 +123,16 @@ def test_one_short_run_of_the_ukf_on_both_truths_gives_finite_figures():
     exact = case["truth_parameters"]["exact"]
     assert exact["magnitude_offset"] == 0.0 and exact["mismatch_rms_mag"] == 0.0
     assert case["truth_parameters"]["perturbed"]["mismatch_rms_mag"] > 0.0
+
+
+def test_putting_back_the_stretch_and_materials_leaves_only_the_appendage():
+    from benchmarks.mismatch_parts import PARTS, part_errors
+
+    parts = part_errors(0, 0, geo_duration_s=60.0)
+    assert parts["parent"] == "box" and parts["appendage"] in ("antenna", "thruster")
+    rms = {name: parts[name]["rms_mag"] for name in PARTS}
+    assert all(0.0 <= v < 2.0 for v in rms.values())
+    # The library box is off by the perturbation; with its stretch and paint put back,
+    # only the small appendage is left to tell the two apart.
+    assert rms["stretch+materials"] < 0.5 * rms["library"]
+    assert parts["stretch+materials"]["p90_mag"] <= parts["library"]["p90_mag"]

@@ -346,7 +346,8 @@ def fit_arc_growing(
     -------
     list of ArcFit
         One per start continued to the whole arc (every start without ``band``, in order;
-        otherwise the survivors, best first), states at the last epoch.
+        otherwise the survivors, best first), states at the last epoch; a start whose
+        state cannot be propagated to the last epoch (non-finite) is left out.
     """
     times = model.times
     span = float(times[-1] - times[0])
@@ -375,12 +376,18 @@ def fit_arc_growing(
     q_end, omega_end = torque_free_trajectory(
         q, omega, np.array([span]), adjustable.principal_inertia(theta), 4.0
     )
+    q_end, omega_end = np.asarray(q_end)[:, 0], np.asarray(omega_end)[:, 0]
+    # A spin run away along a direction the data leave free (tens of °/s about a symmetry
+    # axis) overflows the propagation to the last epoch: such a start has no fit.
+    finite = np.isfinite(q_end).all(axis=1) & np.isfinite(omega_end).all(axis=1)
+    if not finite.any():
+        return []
     return fit_arc(
         model,
         adjustable,
-        np.asarray(q_end)[:, 0],
-        np.asarray(omega_end)[:, 0],
-        theta,
+        q_end[finite],
+        omega_end[finite],
+        theta[finite],
         omega_max=omega_max,
     )
 

@@ -227,18 +227,18 @@ def _rescue(
             inertia_sigma=opt.inertia_sigma,
             offset_sigma_mag=opt.offset_sigma_mag,
         )
-        best = min(
-            fit_arc_growing(
-                ctx.model,
-                adjustable,
-                found.q[starts],
-                found.omega[starts],
-                RESCUE_FIRST_WINDOW_S,
-                omega_max=ctx.omega_max,
-                band=RESCUE_BAND,
-            ),
-            key=lambda f: f.chi2,
+        grown = fit_arc_growing(
+            ctx.model,
+            adjustable,
+            found.q[starts],
+            found.omega[starts],
+            RESCUE_FIRST_WINDOW_S,
+            omega_max=ctx.omega_max,
+            band=RESCUE_BAND,
         )
+        if not grown:
+            continue
+        best = min(grown, key=lambda f: f.chi2)
         if best.model_error_mag < fits[j].model_error_mag:
             replaced.append(
                 f"{ctx.names[j]} {fits[j].model_error_mag:.3f} → {best.model_error_mag:.3f}"

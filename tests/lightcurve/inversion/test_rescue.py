@@ -39,6 +39,22 @@ def test_the_growing_fit_drops_only_the_clearly_worse_starts() -> None:
     assert banded[0].chi2 == pytest.approx(min(f.chi2 for f in every), rel=1e-6)
 
 
+def test_a_start_whose_spin_ran_away_is_dropped_not_an_error() -> None:
+    """A search fit of an axisymmetric candidate can spin at tens of °/s about an axis the
+    data leave free; its propagation over the arc overflows. The growing fit leaves that
+    start out and fits the others (an MMAE run once stopped on it)."""
+    case = draw_case(0, 2, "geo", "rocket_body", geo_duration_s=600.0)
+    observations = simulate_case(case, "exact")
+    shape = get_library().load("rocket_body")
+    model = PhotometricModel(observations, {"rocket_body": shape})
+    q = np.tile(observations.truth[0, :4], (2, 1))
+    omega = np.stack([observations.truth[0, 4:7], np.radians([30.0, 0.0, 60.0])])
+    fits = fit_arc_growing(model, AdjustableShape(shape, ("scale",)), q, omega, 60.0)
+    assert len(fits) == 1
+    assert np.allclose(fits[0].omega, observations.truth[-1, 4:7], atol=math.radians(0.05))
+    assert fit_arc_growing(model, AdjustableShape(shape, ("scale",)), q[1:], omega[1:], 60.0) == []
+
+
 def test_the_rescue_fit_finds_a_box_wing_whose_paint_differs() -> None:
     """A box-wing 1.02–1.12 times the library's along its axes with its materials, masses and
     an appendage drawn around the library's (the mismatch benchmark's GEO run 1): the
