@@ -60,11 +60,11 @@ def candidate_parts(case: Any) -> dict[str, FacetModel]:
     }
 
 
-def part_errors(
-    seed: int, index: int, geo_duration_s: float = GEO_DURATION_S
-) -> dict[str, dict[str, float]]:
+def part_errors(seed: int, index: int, geo_duration_s: float = GEO_DURATION_S) -> dict[str, Any]:
     """rms and 90th percentile (mag) of each candidate's difference from run ``index``'s
-    object at its true attitudes, after the best common offset."""
+    object at its true attitudes, after the best common offset: ``{part: {"rms_mag",
+    "p90_mag"}}`` for every part of :data:`PARTS`, with the ``parent`` name and the kind of
+    ``appendage`` (None without one)."""
     parent = DEFAULT_SHAPES[index % len(DEFAULT_SHAPES)]
     case = draw_case(seed, index, "geo", parent, geo_duration_s=geo_duration_s)
     observed = simulate_case(case, "perturbed")
