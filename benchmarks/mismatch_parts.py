@@ -47,8 +47,7 @@ def candidate_parts(case: Any) -> dict[str, FacetModel]:
     """The library parent of ``case`` with each part of its perturbation put back."""
     parent = get_library().load(case.parent)
     p = case.perturbation
-    transform = p.stretch_axes @ np.diag(p.stretch) @ p.stretch_axes.T
-    stretched = p.center + (parent.vertices - p.center) @ transform.T
+    stretched = p.stretched(parent.vertices)
     materials = {g: p.model.materials[g] for g in parent.group_names}
     return {
         "library": parent,

@@ -224,19 +224,18 @@ def invert_file(
     observations = io.read(input_path, drop_bad_rows=job.drop_bad_rows)
     lib = get_library(job.library)
     declared = observations.meta.get("shape")
-    shape_names = job.shape_names
-    if shape_names is None:
+    if job.shape_names is None:
         if declared is None:
             raise ValueError(
                 f"{input_path}: no candidate shape: the file has no '# shape:' header and "
                 "none of --shape, --shapes, --all-shapes was given"
             )
         try:
-            lib.load(declared)
+            candidates = {declared: lib.load(declared)}
         except ValueError as exc:
             raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
-        shape_names = (declared,)
-    candidates = {name: lib.load(name) for name in shape_names}
+    else:
+        candidates = {name: lib.load(name) for name in job.shape_names}
     result = invert(
         observations,
         candidates,

@@ -176,6 +176,16 @@ class Perturbation:
         """True moments over the largest one, in the order of :attr:`moments`."""
         return self.moments / self.moments.max()
 
+    @property
+    def stretch_transform(self) -> np.ndarray:
+        """The affine stretch ``D = P diag(s) Pᵀ`` (``P`` :attr:`stretch_axes`, ``s``
+        :attr:`stretch`) applied about :attr:`center`, body frame."""
+        return _stretch_transform(self.stretch_axes, self.stretch)
+
+    def stretched(self, vertices: np.ndarray) -> np.ndarray:
+        """``vertices`` (m, body frame) stretched as the object's mesh was."""
+        return _stretch_vertices(vertices, self.center, self.stretch_transform)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready record of the draw (the model itself by name and fingerprint)."""
         return {
@@ -253,8 +263,8 @@ def perturbed_model(
     center = np.asarray(model.center_of_mass, float)
     axes = np.asarray(model.principal_axes, float)
     factors = rng.uniform(1.0 - stretch, 1.0 + stretch, 3)
-    transform = axes @ np.diag(factors) @ axes.T
-    vertices = center + (model.vertices - center) @ transform.T
+    transform = _stretch_transform(axes, factors)
+    vertices = _stretch_vertices(model.vertices, center, transform)
 
     draws = [
         _draw_material(group, model.materials[group], transform, rng, albedo, exponent_factor)
@@ -430,6 +440,18 @@ def _draw_material(
 
 
 # ----------------------------------------------------------------------------------- mass
+def _stretch_transform(axes: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """``P diag(s) Pᵀ``: stretch factors ``s`` along the columns of ``P``."""
+    return axes @ np.diag(factors) @ axes.T
+
+
+def _stretch_vertices(
+    vertices: np.ndarray, center: np.ndarray, transform: np.ndarray
+) -> np.ndarray:
+    """``vertices`` mapped by ``transform`` about ``center``."""
+    return center + (vertices - center) @ transform.T
+
+
 def _stretched_inertia(inertia: np.ndarray, transform: np.ndarray) -> np.ndarray:
     """Inertia about the centre of the same mass distribution mapped by ``x → A x``.
 
