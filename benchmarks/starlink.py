@@ -5,8 +5,9 @@ fitted to the laboratory BRDF tables (``brdf/data/materials.toml``), the Sun fro
 satellite position from the observed altitude, azimuth and height. Nothing is fitted to the
 brightness observations. Prints JSON with the residual statistics (measured − predicted,
 mag) for the two-lobe materials (the presets) and, in the same run, for the earlier one-lobe
-(Cook–Torrance) fits of the same lab tables, and writes ``docs/figures/starlink_pomenis.png``
-(two-lobe materials).
+(Cook–Torrance) fits of the same lab tables and for the two-lobe materials with the light of
+a Lambertian Earth added (its share of the flux reported), and writes
+``docs/figures/starlink_pomenis.png`` (two-lobe materials).
 
     python -m benchmarks.starlink
 """
@@ -69,10 +70,10 @@ def plot(table, path: Path) -> None:
     plt.close(fig)
 
 
-def residual_report(materials: tuple[str, str]) -> tuple[dict, object]:
+def residual_report(materials: tuple[str, str], earthshine: bool = False) -> tuple[dict, object]:
     """Residual statistics of the prediction with the given chassis and array presets."""
     start = time.perf_counter()
-    table = predict_pomenis(materials=materials)
+    table = predict_pomenis(materials=materials, earthshine=earthshine)
     runtime = time.perf_counter() - start
     finite = np.isfinite(table.predicted)
     residual = table.residual[finite].to_numpy()
@@ -88,12 +89,24 @@ def residual_report(materials: tuple[str, str]) -> tuple[dict, object]:
         ),
         "runtime_s": runtime,
     }
+    if earthshine:
+        share = table.earthshine_fraction[finite].to_numpy()
+        report["earthshine_fraction"] = {
+            "median": float(np.median(share)),
+            "p90": float(np.percentile(share, 90)),
+            "max": float(np.max(share)),
+        }
+        report["earthshine_brightening_mag"] = {
+            "median": float(np.median(-2.5 * np.log10(1.0 - share))),
+            "p90": float(np.percentile(-2.5 * np.log10(1.0 - share), 90)),
+        }
     return report, table[finite]
 
 
 def main() -> None:
     two_lobe, table = residual_report(MATERIALS)
     one_lobe, _ = residual_report(ONE_LOBE_MATERIALS)
+    with_earthshine, _ = residual_report(MATERIALS, earthshine=True)
     plot(table, FIGURE)
     print(
         json.dumps(
@@ -102,6 +115,7 @@ def main() -> None:
                 "observations": len(table),
                 "two_lobe": two_lobe,
                 "one_lobe": one_lobe,
+                "two_lobe_with_earthshine": with_earthshine,
                 "figure": str(FIGURE.relative_to(FIGURE.parents[2])),
                 "machine": machine_info(),
             },

@@ -35,7 +35,8 @@ from lightcurve.io.observations import (
     datetime_to_mjd,
     validate_table,
 )
-from lightcurve.photometry.render import Renderer
+from lightcurve.photometry.earthshine import earthshine_flux
+from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.sky.ephemeris import Site, site_position
 from shapes import FacetModel, Material
 
@@ -215,6 +216,8 @@ def predict_observations(
     observations: Observations,
     site: Site = MOUNT_LEMMON,
     materials: tuple[str, str] = MATERIALS,
+    *,
+    earthshine: bool = False,
 ) -> np.ndarray:
     """Predicted magnitudes of a Starlink v1.5 in any observation file from ``site``.
 
@@ -229,27 +232,50 @@ def predict_observations(
     site : Site
     materials : (str, str)
         Presets of the chassis and the solar array (`starlink_model`).
+    earthshine : bool
+        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`).
 
     Returns
     -------
     (n,) numpy.ndarray
         Magnitudes.
     """
-    km = 1000.0
-    position = site_position(site, observations.mjd) - observations.observer_vectors / km
-    q = starlink_attitude(position, position + observations.sun_vectors / km)
-    return _render(q, observations, materials)
+    position = _satellite_position(observations, site)
+    q = starlink_attitude(position, position + observations.sun_vectors / _KM)
+    sun, earth = _fluxes(q, observations, materials, position if earthshine else None)
+    return flux_to_magnitude(sun + earth)
 
 
-def _render(q: np.ndarray, observations: Observations, materials: tuple[str, str]) -> np.ndarray:
+#: Metres per kilometre.
+_KM = 1000.0
+
+
+def _satellite_position(observations: Observations, site: Site) -> np.ndarray:
+    """Geocentric GCRS positions (km) from the site's and the object → observer vectors."""
+    return site_position(site, observations.mjd) - observations.observer_vectors / _KM
+
+
+def _fluxes(
+    q: np.ndarray,
+    observations: Observations,
+    materials: tuple[str, str],
+    position_km: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flux ratios lit by the Sun and by the Earth (zeros without ``position_km``)."""
     # The paper's model is two independent surfaces: no mutual shadowing.
-    return Renderer(starlink_model(materials), shadows="none").magnitude(
-        q, observations.sun_vectors, observations.observer_vectors
-    )
+    renderer = Renderer(starlink_model(materials), shadows="none")
+    sun, observer = observations.sun_vectors, observations.observer_vectors
+    direct = renderer.flux(q, sun, observer)
+    if position_km is None:
+        return direct, np.zeros_like(direct)
+    return direct, earthshine_flux(renderer, q, observer, position_km * _KM, sun)
 
 
 def predict_pomenis(
-    table: pd.DataFrame | None = None, materials: tuple[str, str] = MATERIALS
+    table: pd.DataFrame | None = None,
+    materials: tuple[str, str] = MATERIALS,
+    *,
+    earthshine: bool = False,
 ) -> pd.DataFrame:
     """Predicted vs measured magnitude of the Pomenis observations.
 
@@ -259,18 +285,23 @@ def predict_pomenis(
         Observations as returned by :func:`read_pomenis` (default: all of them).
     materials : (str, str)
         Presets of the chassis and the solar array (`starlink_model`).
+    earthshine : bool
+        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`).
 
     Returns
     -------
     pandas.DataFrame
         ``mjd``, ``measured``, ``predicted``, ``residual`` (measured − predicted),
-        ``phase_angle_deg``, ``altitude_deg``, ``height_km``.
+        ``phase_angle_deg``, ``altitude_deg``, ``height_km``, ``earthshine_fraction``
+        (the Earth's share of the predicted flux; 0 without ``earthshine``).
     """
     from lightcurve.sky.geometry import phase_angle
 
     table = read_pomenis() if table is None else table
     observations, q = pomenis_geometry(table)
-    predicted = _render(q, observations, materials)
+    position = _satellite_position(observations, MOUNT_LEMMON) if earthshine else None
+    sun, earth = _fluxes(q, observations, materials, position)
+    predicted = flux_to_magnitude(sun + earth)
     measured = observations.magnitudes
     return pd.DataFrame(
         {
@@ -283,5 +314,8 @@ def predict_pomenis(
             ),
             "altitude_deg": table["altitude_deg"].to_numpy(),
             "height_km": table["height_km"].to_numpy(),
+            "earthshine_fraction": np.divide(
+                earth, sun + earth, out=np.zeros_like(earth), where=sun + earth > 0
+            ),
         }
     )
