@@ -1,0 +1,17 @@
+"""The Starlink calibration benchmark runs end to end on a thinned set."""
+
+import json
+
+from benchmarks import starlink_calibration
+
+
+def test_the_benchmark_reports_every_parameter_set(capsys):
+    starlink_calibration.main(["--every", "30", "--folds", "2", "--splits", "1"])
+    report = json.loads(capsys.readouterr().out)
+    assert set(report["parameter_sets"]) == {"offset", "lobes", "all"}
+    for entry in report["parameter_sets"].values():
+        assert entry["cv_rms_mag"] > 0.0
+        assert len(entry["per_fold"]) == 2
+    # the offset alone removes the unfitted prediction's mean
+    offset = report["parameter_sets"]["offset"]
+    assert abs(offset["cv_bias_mag"]) < 0.5 * abs(report["unfitted_prediction"]["mean_mag"])
