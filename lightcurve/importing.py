@@ -23,6 +23,7 @@ from lightcurve.io.observations import (
     validate_table,
 )
 from lightcurve.io.tables import CellProblems, RawTable, numeric_column
+from lightcurve.photometry.bands import band_header
 from lightcurve.sky.epochs import MICROSECONDS_PER_DAY, TimeColumn, epoch_strings, parse_times
 from lightcurve.sky.sites import Site
 from lightcurve.sky.tle import TLE
@@ -110,6 +111,7 @@ def import_photometry(
     drop_bad_rows: bool = False,
     allow_duplicate_epochs: bool = False,
     name: str | None = None,
+    band: tuple[str, str] | None = None,
 ) -> Observations:
     """An observation table from a photometry table, a site and the object's geometry.
 
@@ -141,6 +143,9 @@ def import_photometry(
         Accept several rows at one time (e.g. several objects in one table).
     name : str, optional
         Object name for the metadata.
+    band : (str, str), optional
+        ``(band, system)`` of the magnitudes (:mod:`lightcurve.photometry.bands`), recorded
+        in the header; the inversion then takes the Sun's magnitude in that band.
 
     Returns
     -------
@@ -211,6 +216,8 @@ def import_photometry(
     frame.insert(3, "mag_err", err[rows])
     meta: dict[str, str] = {}
     meta.update(table.meta)
+    if band is not None:
+        meta.update(band_header(*band))
     meta.update(
         {
             "object": name or table.meta.get("object") or Path(table.source).stem,

@@ -146,6 +146,32 @@ def add_output_folder(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 
 
+def add_band_options(parser: argparse.ArgumentParser, effect: str) -> None:
+    """Add ``--band NAME`` and ``--magnitude-system vega|ab`` (``args.band``,
+    ``args.magnitude_system``); ``effect`` says what the band does in this command."""
+    parser.add_argument(
+        "--band",
+        help=f"photometric band of the magnitudes (V, B, K; LSST u g r i z y): {effect}",
+    )
+    parser.add_argument(
+        "--magnitude-system",
+        choices=("vega", "ab"),
+        default="vega",
+        help="magnitude system of --band",
+    )
+
+
+def band_of(args: argparse.Namespace) -> tuple[str, str] | None:
+    """``(band, system)`` of ``--band``/``--magnitude-system``, checked; None without
+    ``--band``."""
+    if args.band is None:
+        return None
+    from lightcurve.photometry.bands import sun_magnitude
+
+    sun_magnitude(args.band, args.magnitude_system)  # an unknown band fails here
+    return args.band, args.magnitude_system
+
+
 def add_false_alarm_option(parser: argparse.ArgumentParser, help_text: str) -> None:
     """Add ``--false-alarm``: the glint detector's false-alarm probability (default 1e-3)."""
     parser.add_argument("--false-alarm", type=float, default=1e-3, help=help_text)

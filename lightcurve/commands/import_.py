@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 
+from lightcurve.commands._args import add_band_options, band_of
 from lightcurve.commands._satellite_args import (
     add_shadow_options,
     add_site,
@@ -107,6 +108,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="accept several rows at one time (e.g. several objects in one table)",
     )
     parser.add_argument("--name", help="object name for the header")
+    add_band_options(
+        parser,
+        "recorded in the header: the inversion takes the Sun's magnitude in it (Willmer 2018)",
+    )
     parser.add_argument(
         "--out", required=True, metavar="FILE", help="output file (.csv or .parquet)"
     )
@@ -150,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
             drop_bad_rows=args.drop_bad_rows,
             allow_duplicate_epochs=args.allow_duplicate_epochs,
             name=args.name,
+            band=band_of(args),
         )
     io.write(observations, args.out)
     states = observations.table["shadow"].value_counts()

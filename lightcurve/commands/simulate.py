@@ -11,8 +11,10 @@ the celestial north pole), composed with a fixed --offset-deg ROLL,PITCH,YAW. Th
 an articulated shape follow their joints (Sun-tracking, or angles from the file's columns)
 and their angles are written as joint_<part>_deg. The output is an observation file with
 mag and mag_err filled and the truth columns q1 q2 q3 q4 (inertial→body) and wx wy wz
-(rad/s) added. Epochs when the object is dark, or undetected under --ccd or --conditions,
-are dropped and counted in the file's header.
+(rad/s) added. --band (with --magnitude-system) gives the magnitudes in another band than
+V, from the Sun's magnitude in it, and records it in the header. Epochs when the object is
+dark, or undetected under --ccd or --conditions, are dropped and counted in the file's
+header.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
@@ -29,7 +31,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lightcurve.commands._args import float_vector, inertia_tensor, unit_quaternion
+from lightcurve.commands._args import (
+    add_band_options,
+    band_of,
+    float_vector,
+    inertia_tensor,
+    unit_quaternion,
+)
 from lightcurve.commands._source import dataclass_fields, literal
 
 if TYPE_CHECKING:
@@ -77,6 +85,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--yaw-steering",
         action="store_true",
         help="nadir profile: yaw about the nadir axis to keep the Sun in the body x-z plane",
+    )
+    add_band_options(
+        parser,
+        "the Sun's magnitude in it (Willmer 2018) replaces V's, recorded in the header",
     )
     parser.add_argument(
         "--inertia",
@@ -160,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--yaw-steering applies to --profile nadir only")
     if args.offset_deg is not None and args.profile == "torque-free":
         raise ValueError("--offset-deg applies to stabilised profiles only")
+    band = band_of(args)
     geometry = io.read(args.geometry, require_magnitudes=False)
     shape = get_library(args.library).load(
         args.shape, visibility=args.shadows != "none", articulated=True
@@ -186,6 +199,7 @@ def run(args: argparse.Namespace) -> int:
         profile=args.profile,
         offset_deg=args.offset_deg,
         yaw_steering=args.yaw_steering,
+        band=band,
     )
     io.write(result, args.out)
     notes = [

@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from lightcurve.io.observations import Observations
+from lightcurve.photometry.bands import header_offset
 from lightcurve.photometry.render import SUN_MAGNITUDE, Renderer, magnitude_to_flux
 from shapes import FacetModel
 
@@ -98,7 +99,8 @@ class PhotometricModel:
         self.device = self.renderers[0].device
         self.times = observations.times
         self.mjd = observations.mjd
-        self.magnitudes = observations.magnitudes
+        # magnitudes in a declared band are taken back to the model's V (a grey object)
+        self.magnitudes = observations.magnitudes - header_offset(observations.meta)
         self.errors = observations.magnitude_errors
         for label, values in (("mag", self.magnitudes), ("mag_err", self.errors)):
             if not np.all(np.isfinite(values)):

@@ -26,6 +26,7 @@ from scipy.integrate import solve_ivp
 
 from filters.attitude import quaternion_normalize, validate_inertia
 from lightcurve.io.observations import TRUTH_COLUMNS, Observations, validate_table
+from lightcurve.photometry.bands import band_header, band_offset
 from lightcurve.photometry.noise import (
     CCDNoise,
     GaussianNoise,
@@ -158,6 +159,7 @@ def simulate(
     profile: str = "torque-free",
     offset_deg: np.ndarray | None = None,
     yaw_steering: bool = False,
+    band: tuple[str, str] | None = None,
 ) -> Observations:
     """Simulate a light curve over the epochs of a geometry table.
 
@@ -188,6 +190,10 @@ def simulate(
         Fixed offset ``[roll, pitch, yaw]`` (deg) of a stabilised profile.
     yaw_steering : bool
         Yaw-steer the ``nadir`` profile.
+    band : (str, str), optional
+        ``(band, system)`` of the magnitudes (:mod:`lightcurve.photometry.bands`, e.g.
+        ``("r", "ab")``): the Sun's magnitude in that band replaces the V magnitude of
+        the measurement model (a grey object), and the header records it.
 
     Returns
     -------
@@ -225,6 +231,8 @@ def simulate(
         magnitude = renderer.magnitude(
             states[:, :4], geometry.sun_vectors, geometry.observer_vectors
         )
+    if band is not None:
+        magnitude = magnitude + band_offset(*band)
     dark = ~np.isfinite(magnitude)
     if noise is None:
         measurement = Measurement(magnitude, np.full_like(magnitude, 1e-6))
@@ -257,6 +265,8 @@ def simulate(
             "seed": str(seed) if not isinstance(seed, np.random.Generator) else "generator",
         }
     )
+    if band is not None:
+        meta.update(band_header(*band))
     if dark.any():
         meta["dropped_dark"] = str(int(dark.sum()))
     if nondetected.any():

@@ -270,9 +270,10 @@ def test_pomenis_table_through_import_gives_the_starlink_prediction(tmp_path, ca
     argv += ["--time-format", "iso", "--mag-column", "ab_magnitude", "--mag-err", "0.1"]
     argv += ["--alt-az-range-columns", "satellite_altitude,satellite_azimuth,satellite_height"]
     argv += ["--range-kind", "height", "--site", "Mount Lemmon", "--allow-duplicate-epochs"]
-    assert main([*argv, "--out", str(out)]) == 0
+    assert main([*argv, "--band", "r", "--magnitude-system", "ab", "--out", str(out)]) == 0
     assert "1173 measurements" in capsys.readouterr().out
     observations = io.read(out)
+    assert (observations.meta["band"], observations.meta["magnitude_system"]) == ("r", "ab")
     reference = predict_pomenis()  # what benchmarks/starlink.py reports
     np.testing.assert_array_equal(observations.mjd, reference["mjd"])
     np.testing.assert_array_equal(observations.magnitudes, reference["measured"])
