@@ -2,6 +2,8 @@
 
 Modules
 -------
+- :mod:`~lightcurve.commands.calibrate` — Calibrate a library shape's photometry on observations of
+  an object with a known profile.
 - :mod:`~lightcurve.commands.convex` — Convex shape and spin inversion of asteroid light curves
   (Kaasalainen & Torppa 2001).
 - :mod:`~lightcurve.commands.geometry` — Write a geometry file for an Earth-orbiting object seen

@@ -86,6 +86,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="nadir profile: yaw about the nadir axis to keep the Sun in the body x-z plane",
     )
+    parser.add_argument(
+        "--calibration",
+        metavar="FILE",
+        help="calibration.json of `lightcurve calibrate`: its materials, magnitude offset and "
+        "attitude offsets replace the library's",
+    )
     add_band_options(
         parser,
         "the Sun's magnitude in it (Willmer 2018) replaces V's, recorded in the header",
@@ -177,6 +183,9 @@ def run(args: argparse.Namespace) -> int:
     shape = get_library(args.library).load(
         args.shape, visibility=args.shadows != "none", articulated=True
     )
+    magnitude_offset, offset_deg = 0.0, args.offset_deg
+    if args.calibration is not None:
+        shape, magnitude_offset, offset_deg = _calibrated(args, shape)
     if args.condition and (args.noise_mag is not None or args.ccd is not None):
         raise ValueError("--condition goes with --conditions (or alone), not --noise-mag/--ccd")
     if args.noise_mag is not None:
@@ -197,9 +206,10 @@ def run(args: argparse.Namespace) -> int:
         shadows=args.shadows,
         seed=args.seed,
         profile=args.profile,
-        offset_deg=args.offset_deg,
+        offset_deg=offset_deg,
         yaw_steering=args.yaw_steering,
         band=band,
+        magnitude_offset=magnitude_offset,
     )
     io.write(result, args.out)
     notes = [
@@ -219,3 +229,41 @@ def run(args: argparse.Namespace) -> int:
         + "".join(f", {note}" for note in notes)
     )
     return 0
+
+
+def _calibrated(args: argparse.Namespace, shape):
+    """The shape with the materials of ``--calibration``, its magnitude offset and the
+    profile's offsets (the calibration's, or ``--offset-deg``, not both)."""
+    import json
+    from pathlib import Path
+
+    from shapes import FacetModel, Material
+
+    if not isinstance(shape, FacetModel):
+        raise ValueError(f"--calibration: {shape.name} is articulated, not covered yet")
+    try:
+        calibration = json.loads(Path(args.calibration).read_text(encoding="utf-8"))
+        materials = calibration["materials"]
+        magnitude_offset = float(calibration["magnitude_offset"])
+        offset_deg = np.asarray(calibration["offset_deg"], dtype=float)
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ValueError(
+            f"--calibration {args.calibration}: not a calibration file ({error})"
+        ) from None
+    if calibration.get("shape") != shape.name:
+        raise ValueError(
+            f"--calibration {args.calibration} is of shape {calibration.get('shape')!r}, "
+            f"not {shape.name!r}"
+        )
+    unknown = sorted(set(materials) - set(shape.materials))
+    if unknown:
+        raise ValueError(f"--calibration: {shape.name} has no material group {', '.join(unknown)}")
+    if np.any(offset_deg) and args.offset_deg is not None:
+        raise ValueError("--offset-deg and a calibration with attitude offsets: give one")
+    calibrated = {
+        group: Material(entry["brdf"], entry["params"], name=entry.get("name", group))
+        for group, entry in materials.items()
+    }
+    shape = shape.replace(materials={**shape.materials, **calibrated})
+    offsets = args.offset_deg if args.offset_deg is not None else offset_deg
+    return shape, magnitude_offset, offsets if np.any(offsets) else args.offset_deg

@@ -38,11 +38,19 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import brdf
+from filters.attitude import quaternion_multiply
 from lightcurve.io.observations import Observations
+from lightcurve.photometry.profiles import offset_quaternion
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from shapes import FacetModel, Material
 
-__all__ = ["Calibration", "calibrate", "cross_validate", "night_index"]
+__all__ = [
+    "ATTITUDE_OFFSETS",
+    "Calibration",
+    "calibrate",
+    "cross_validate",
+    "night_index",
+]
 
 #: Energy bound shared by the weights of the BRDF registry's multi-lobe models.
 _WEIGHT_NAMES = ("rd", "rs", "rb", "rn")
@@ -69,6 +77,8 @@ class Calibration:
         The calibrated materials (group → :class:`shapes.Material`).
     shadows : str
         The renderer's shadow mode of the fit.
+    offset_deg : (3,) numpy.ndarray
+        Fitted attitude offsets ``[roll, pitch, yaw]`` (deg; zeros when not fitted).
     """
 
     magnitude_offset: float
@@ -78,6 +88,7 @@ class Calibration:
     n_observations: int
     materials: dict[str, Material] = field(repr=False)
     shadows: str = "auto"
+    offset_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def apply(self, model: FacetModel) -> FacetModel:
         """``model`` with the calibrated materials (the offset is applied to magnitudes by
@@ -88,7 +99,20 @@ class Calibration:
         """Calibrated magnitudes of ``model`` at attitudes ``q`` (inertial → body) and the
         object → Sun and object → observer vectors (m, inertial)."""
         renderer = Renderer(self.apply(model), shadows=self.shadows)
-        return np.asarray(renderer.magnitude(q, sun, observer)) + self.magnitude_offset
+        turned = _turned(np.asarray(q, dtype=float), self.offset_deg)
+        return np.asarray(renderer.magnitude(turned, sun, observer)) + self.magnitude_offset
+
+    def to_json(self) -> dict[str, Any]:
+        """What ``simulate --calibration`` applies: the magnitude offset, the attitude
+        offsets and each calibrated material (``brdf``, ``params``)."""
+        return {
+            "magnitude_offset": self.magnitude_offset,
+            "offset_deg": [float(v) for v in self.offset_deg],
+            "materials": {
+                group: {"brdf": m.brdf, "params": dict(m.params), "name": m.name}
+                for group, m in self.materials.items()
+            },
+        }
 
 
 @dataclass(frozen=True)
@@ -117,12 +141,14 @@ def calibrate(
     *,
     parameters: Sequence[str] = (),
     offset: bool = True,
+    attitude_offsets: bool = False,
     prior_dex: float = 0.3,
     prior_fraction: float = 0.25,
+    offset_sigma_deg: float = 5.0,
     loss_scale: float = 3.0,
     shadows: str = "auto",
 ) -> Calibration:
-    """Fit a magnitude offset and BRDF parameters of ``model`` to observations.
+    """Fit a magnitude offset, attitude offsets and BRDF parameters of ``model``.
 
     Parameters
     ----------
@@ -137,9 +163,15 @@ def calibrate(
         fits every parameter of that group's BRDF.
     offset : bool
         Fit the magnitude offset (albedo–area scale).
+    attitude_offsets : bool
+        Fit a fixed rotation of the body from the profile, 3-2-1 Euler angles ``[roll,
+        pitch, yaw]`` (deg, ``q = q_off ⊗ q``, as :func:`~lightcurve.photometry.profiles.
+        offset_quaternion`), under a prior of ``offset_sigma_deg`` about zero.
     prior_dex, prior_fraction : float
         1σ of the prior about the library values: in log10 for log-scale parameters,
         as a fraction of the registry's search range otherwise.
+    offset_sigma_deg : float
+        1σ of the attitude offsets' prior (deg).
     loss_scale : float
         Residual (in units of the observations' 1σ) where the soft-L1 loss turns from
         quadratic to linear: observations further out (glints of the model or the sky,
@@ -152,54 +184,68 @@ def calibrate(
     Calibration
     """
     free = _free_parameters(model, parameters, prior_dex, prior_fraction)
+    layout = _Layout(offset, attitude_offsets, len(free))
     measured = np.asarray(observations.magnitudes, dtype=float)
     sigma = np.asarray(observations.magnitude_errors, dtype=float)
     sun, observer = observations.sun_vectors, observations.observer_vectors
     finite = np.isfinite(measured) & np.isfinite(sigma) & (sigma > 0)
-    if finite.sum() < len(free) + int(offset) + 1:
+    if finite.sum() < layout.size + 1:
         raise ValueError(
-            f"calibration: {int(finite.sum())} usable observations for "
-            f"{len(free) + int(offset)} parameters"
+            f"calibration: {int(finite.sum())} usable observations for {layout.size} parameters"
         )
     rows = np.flatnonzero(finite)
-    q, sun, observer = np.asarray(q)[rows], sun[rows], observer[rows]
+    q, sun, observer = np.asarray(q, dtype=float)[rows], sun[rows], observer[rows]
     measured, sigma = measured[rows], sigma[rows]
     faint = float(np.max(measured)) + 10.0  # a dark model epoch: far fainter than any data
 
     def predicted(x: np.ndarray) -> np.ndarray:
-        materials = _materials(model, free, x[int(offset) :])
-        flux = Renderer(model.replace(materials=materials), shadows=shadows).flux(q, sun, observer)
+        materials = _materials(model, free, x[layout.materials])
+        renderer = Renderer(model.replace(materials=materials), shadows=shadows)
+        flux = renderer.flux(_turned(q, x[layout.angles]), sun, observer)
         magnitude = np.minimum(flux_to_magnitude(np.asarray(flux)), faint)
         return magnitude + (x[0] if offset else 0.0)
 
-    prior_centre = np.array([f.to_search(f.prior) for f in free])
+    prior_centre = np.concatenate([np.zeros(layout.n_angles), [f.to_search(f.prior) for f in free]])
+    prior_sigma = np.concatenate(
+        [np.full(layout.n_angles, offset_sigma_deg), [f.sigma for f in free]]
+    )
     x0 = np.concatenate([np.zeros(int(offset)), prior_centre])
     if offset:  # start at the median offset of the library model
         x0[0] = float(np.median(measured - predicted(x0)))
-    prior_sigma = np.array([f.sigma for f in free])
 
     def residuals(x: np.ndarray) -> np.ndarray:
         data = (measured - predicted(x)) / sigma
         return np.concatenate([data, (x[int(offset) :] - prior_centre) / prior_sigma])
 
-    lower = [-np.inf] * int(offset) + [f.to_search(f.lower) for f in free]
-    upper = [np.inf] * int(offset) + [f.to_search(f.upper) for f in free]
+    lower = np.concatenate(
+        [np.full(int(offset) + layout.n_angles, -np.inf), [f.to_search(f.lower) for f in free]]
+    )
+    upper = np.concatenate(
+        [np.full(int(offset) + layout.n_angles, np.inf), [f.to_search(f.upper) for f in free]]
+    )
     x0 = np.clip(x0, np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf))
     fit = least_squares(
         residuals, x0, bounds=(lower, upper), loss="soft_l1", f_scale=loss_scale, x_scale="jac"
     )
     data = fit.fun[: len(measured)]
     spread = 1.4826 * float(np.median(np.abs(data - np.median(data))))
-    information = fit.jac.T @ fit.jac
-    covariance = np.linalg.pinv(information, hermitian=True) * max(1.0, spread**2)
+    covariance = np.linalg.pinv(fit.jac.T @ fit.jac, hermitian=True) * max(1.0, spread**2)
     sigmas = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(sigmas, sigmas)
     out: dict[str, dict[str, Any]] = {}
     if offset:
         out["magnitude_offset"] = {"value": float(fit.x[0]), "sigma": float(sigmas[0])}
-    for j, f in enumerate(free):
-        k = j + int(offset)
+    for name, k in zip(
+        ATTITUDE_OFFSETS[: layout.n_angles], np.arange(layout.size)[layout.angles], strict=True
+    ):
+        out[name] = {
+            "value": float(fit.x[k]),
+            "sigma": float(sigmas[k]),
+            "prior": 0.0,
+            "constrained": bool(sigmas[k] < 0.5 * offset_sigma_deg),
+        }
+    for f, k in zip(free, np.arange(layout.size)[layout.materials], strict=True):
         value = f.from_search(float(fit.x[k]))
         # a log-scale parameter's 1σ is carried to linear units at the value
         scale = value * math.log(10.0) if f.log else 1.0
@@ -217,9 +263,49 @@ def calibrate(
         correlation=np.nan_to_num(correlation),
         train_rms_mag=float(np.sqrt(np.mean(residual**2))),
         n_observations=len(measured),
-        materials=_materials(model, free, fit.x[int(offset) :]),
+        materials=_materials(model, free, fit.x[layout.materials]),
         shadows=shadows,
+        offset_deg=fit.x[layout.angles].copy() if attitude_offsets else np.zeros(3),
     )
+
+
+#: Names of the fitted attitude offsets (3-2-1 Euler angles of the body from its profile).
+ATTITUDE_OFFSETS = ("offset_roll_deg", "offset_pitch_deg", "offset_yaw_deg")
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where each kind of unknown sits in the fit's vector: the magnitude offset, the
+    attitude offsets (deg), the BRDF parameters (search coordinates)."""
+
+    offset: bool
+    attitude_offsets: bool
+    n_materials: int
+
+    @property
+    def n_angles(self) -> int:
+        return 3 if self.attitude_offsets else 0
+
+    @property
+    def size(self) -> int:
+        return int(self.offset) + self.n_angles + self.n_materials
+
+    @property
+    def angles(self) -> slice:
+        first = int(self.offset)
+        return slice(first, first + self.n_angles)
+
+    @property
+    def materials(self) -> slice:
+        return slice(int(self.offset) + self.n_angles, self.size)
+
+
+def _turned(q: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Attitudes ``q_off ⊗ q`` of the offsets ``[roll, pitch, yaw]`` (deg); ``q`` itself
+    without offsets."""
+    if len(angles) == 0:
+        return q
+    return quaternion_multiply(offset_quaternion(angles), q)
 
 
 def _free_parameters(

@@ -160,6 +160,7 @@ def simulate(
     offset_deg: np.ndarray | None = None,
     yaw_steering: bool = False,
     band: tuple[str, str] | None = None,
+    magnitude_offset: float = 0.0,
 ) -> Observations:
     """Simulate a light curve over the epochs of a geometry table.
 
@@ -194,6 +195,9 @@ def simulate(
         ``(band, system)`` of the magnitudes (:mod:`lightcurve.photometry.bands`, e.g.
         ``("r", "ab")``): the Sun's magnitude in that band replaces the V magnitude of
         the measurement model (a grey object), and the header records it.
+    magnitude_offset : float
+        Added to every magnitude before the noise (mag): a calibrated albedo–area scale
+        (:mod:`lightcurve.photometry.calibration`); recorded in the header when not 0.
 
     Returns
     -------
@@ -233,6 +237,7 @@ def simulate(
         )
     if band is not None:
         magnitude = magnitude + band_offset(*band)
+    magnitude = magnitude + magnitude_offset
     dark = ~np.isfinite(magnitude)
     if noise is None:
         measurement = Measurement(magnitude, np.full_like(magnitude, 1e-6))
@@ -267,6 +272,8 @@ def simulate(
     )
     if band is not None:
         meta.update(band_header(*band))
+    if magnitude_offset:
+        meta["magnitude_offset"] = f"{magnitude_offset:.6g}"
     if dark.any():
         meta["dropped_dark"] = str(int(dark.sum()))
     if nondetected.any():

@@ -1,0 +1,96 @@
+"""`lightcurve calibrate` and `simulate --calibration` through the public commands."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lightcurve.cli import main
+
+NOISE = 0.02
+TRUTH = {"bus": {"rd": 0.26, "rs": 0.4}}
+
+
+def _geometry(folder, start):
+    path = folder / f"geo_{start[:10]}.csv"
+    argv = ["geometry", "--start", start, "--duration", "3600", "--cadence", "20"]
+    assert main([*argv, "--geo", "-100", "--name", "bw", "--out", str(path)]) == 0
+    return path
+
+
+@pytest.fixture(scope="module")
+def nights(tmp_path_factory):
+    """Three GEO nights of a nadir-pointing box-wing whose bus differs from the library's
+    and whose brightness is 0.3 mag fainter, simulated through `simulate --calibration`."""
+    folder = tmp_path_factory.mktemp("calibrate")
+    from shapes import get_library
+
+    library = get_library().load("box_wing")
+    materials = {
+        group: {"brdf": m.brdf, "params": {**m.params, **TRUTH.get(group, {})}, "name": m.name}
+        for group, m in library.materials.items()
+    }
+    truth = folder / "truth.json"
+    truth.write_text(
+        json.dumps(
+            {
+                "shape": "box_wing",
+                "magnitude_offset": 0.3,
+                "offset_deg": [0, 0, 0],
+                "materials": materials,
+            }
+        )
+    )
+    files = []
+    for k, start in enumerate(
+        ("2024-03-10T05:00:00", "2024-03-14T04:00:00", "2024-03-20T06:00:00")
+    ):
+        out = folder / f"night{k}.csv"
+        argv = ["simulate", str(_geometry(folder, start)), "--shape", "box_wing"]
+        argv += ["--profile", "nadir", "--yaw-steering", "--noise-mag", str(NOISE)]
+        argv += ["--seed", str(k), "--calibration", str(truth), "--out", str(out)]
+        assert main(argv) == 0
+        files.append(out)
+    return folder, files
+
+
+def test_calibrate_recovers_the_bus_and_the_scale_within_2_sigma(nights, capsys):
+    folder, files = nights
+    out = folder / "fit"
+    argv = ["calibrate", *map(str, files), "--shape", "box_wing", "--profile", "nadir"]
+    argv += ["--yaw-steering", "--fit", "scale,material", "--parameters", "bus.rd,bus.rs"]
+    assert main([*argv, "--folds", "3", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for key, true in (("bus.rd", 0.26), ("bus.rs", 0.4), ("magnitude_offset", 0.3)):
+        entry = summary["parameters"][key]
+        assert abs(entry["value"] - true) <= 2.0 * entry["sigma"], (key, entry)
+    assert summary["cv_rms_mag"] < 1.5 * NOISE
+    assert summary["nights"] == 3 and len(summary["folds"]) == 3
+    assert set(summary) >= {"train_rms_mag", "cv_rms_mag", "cv_bias_mag", "unconstrained"}
+    # the calibration simulates the object back: the same light curve as the truth's
+    again = folder / "again.csv"
+    argv = ["simulate", str(folder / "geo_2024-03-10.csv"), "--shape", "box_wing"]
+    argv += ["--profile", "nadir", "--yaw-steering", "--calibration"]
+    assert main([*argv, str(out / "calibration.json"), "--out", str(again)]) == 0
+    assert main([*argv, str(folder / "truth.json"), "--out", str(folder / "exact.csv")]) == 0
+    from lightcurve import io
+
+    difference = io.read(again).magnitudes - io.read(folder / "exact.csv").magnitudes
+    assert np.sqrt(np.mean(difference**2)) < NOISE
+
+
+def test_bad_requests_get_one_clean_line(nights, capsys):
+    folder, files = nights
+    base = ["calibrate", str(files[0]), "--shape", "box_wing", "--profile", "nadir"]
+    out = ["--out", str(folder / "bad")]
+    assert main([*base, "--fit", "scale,colour", *out]) != 0
+    assert "--fit: unknown item(s) colour" in capsys.readouterr().err
+    assert main([*base, "--fit", "scale", "--parameters", "bus.rd", *out]) != 0
+    assert "--parameters goes with --fit material" in capsys.readouterr().err
+    assert main([*base, "--parameters", "hull.rd", *out]) != 0
+    assert "no material group 'hull'" in capsys.readouterr().err
+    bad = folder / "bad.json"
+    bad.write_text("{}")
+    argv = ["simulate", str(files[0]), "--shape", "box_wing", "--profile", "nadir"]
+    assert main([*argv, "--calibration", str(bad), "--out", str(folder / "x.csv")]) != 0
+    assert "not a calibration file" in capsys.readouterr().err
