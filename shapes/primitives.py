@@ -34,6 +34,7 @@ __all__ = [
     "cylinder",
     "ellipsoid",
     "icosphere",
+    "panels",
     "plate",
     "rocket_body",
 ]
@@ -173,6 +174,54 @@ def plate(
         materials,
         name,
         {"source": f"shapes.primitives.plate({width}, {height})"},
+        group_index=index,
+    )
+
+
+def panels(
+    layout: Mapping[str, tuple[Sequence[float], float, Sequence[float]]],
+    materials: Mapping[str, Material],
+    *,
+    name: str = "panels",
+) -> FacetModel:
+    """One-sided square panels, one material group each: a satellite modelled by its
+    surfaces (e.g. a nadir face and a solar array) rather than by a closed body.
+
+    Parameters
+    ----------
+    layout : mapping
+        Group name → ``(normal, area, center)``: the panel's outward unit normal (body
+        frame), its area (m²) and its centre (m).
+    materials : mapping
+        Group name → material, for every group of ``layout``.
+
+    Returns
+    -------
+    FacetModel
+        Open; inertia of a thin shell (default).
+    """
+    missing = set(layout) - set(materials)
+    if missing:
+        raise ShapeError(f"no material for panel(s) {', '.join(sorted(missing))}")
+    parts = []
+    for group, (normal, area, center) in layout.items():
+        _positive(**{f"{group} area": area})
+        n = np.asarray(normal, dtype=float)
+        n = n / np.linalg.norm(n)
+        e_u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e_u /= np.linalg.norm(e_u)
+        side = float(np.sqrt(area))
+        parts.append(
+            (group, _sheet(np.asarray(center, float), e_u, np.cross(n, e_u), (side, side), 1))
+        )
+    groups = {group: materials[group] for group in layout}
+    vertices, faces, index = _assemble(parts, list(groups))
+    return _model(
+        (vertices, faces),
+        groups,
+        None,
+        name,
+        {"source": "shapes.primitives.panels"},
         group_index=index,
     )
 

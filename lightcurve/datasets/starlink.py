@@ -38,7 +38,7 @@ from lightcurve.io.observations import (
 from lightcurve.photometry.earthshine import earthshine_flux
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.sky.ephemeris import Site, site_position
-from shapes import FacetModel, Material
+from shapes import FacetModel, Material, primitives
 
 __all__ = [
     "CHASSIS_AREA_M2",
@@ -100,16 +100,6 @@ def read_pomenis(path: str | Path = POMENIS_PATH) -> pd.DataFrame:
     return table.sort_values("mjd", kind="stable").reset_index(drop=True)
 
 
-def _plate(normal: np.ndarray, area: float) -> tuple[np.ndarray, np.ndarray]:
-    """Two triangles of a square of ``area`` with outward ``normal``."""
-    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(normal, u)
-    h = 0.5 * np.sqrt(area)
-    corners = np.array([-u - v, u - v, u + v, -u + v]) * h
-    return corners, np.array([[0, 1, 2], [0, 2, 3]])
-
-
 def starlink_model(materials: tuple[str, str] = MATERIALS) -> FacetModel:
     """The two-surface Starlink v1.5 model with lab-fitted materials.
 
@@ -123,27 +113,18 @@ def starlink_model(materials: tuple[str, str] = MATERIALS) -> FacetModel:
     if unknown:
         raise ValueError(f"no material preset(s) {', '.join(unknown)} in brdf/data/materials.toml")
     chassis, solar_array = (presets[name] for name in materials)
-    parts = [
-        ("chassis", np.array([0.0, 0.0, -1.0]), CHASSIS_AREA_M2, chassis),
-        ("solar_array", np.array([0.0, 1.0, 0.0]), SOLAR_ARRAY_AREA_M2, solar_array),
-    ]
-    vertices, faces, groups = [], [], []
-    for index, (_, normal, area, _) in enumerate(parts):
-        corners, tris = _plate(normal, area)
-        offset = 4 * index
-        vertices.append(corners + 2.0 * index * normal)
-        faces.append(tris + offset)
-        groups += [index, index]
-    materials = {
-        name: Material(preset.model, dict(preset.params), name=name) for name, _, _, preset in parts
-    }
-    return FacetModel(
-        np.concatenate(vertices),
-        np.concatenate(faces),
-        group_index=np.array(groups),
-        group_names=[p[0] for p in parts],
-        materials=materials,
+    model = primitives.panels(
+        {
+            "chassis": ((0.0, 0.0, -1.0), CHASSIS_AREA_M2, (0.0, 0.0, 0.0)),
+            "solar_array": ((0.0, 1.0, 0.0), SOLAR_ARRAY_AREA_M2, (0.0, 2.0, 0.0)),
+        },
+        {
+            name: Material(preset.model, dict(preset.params), name=name)
+            for name, preset in (("chassis", chassis), ("solar_array", solar_array))
+        },
         name="starlink_v1.5",
+    )
+    return model.replace(
         provenance={"source": "Fankhauser, Askari & Tyson (2023)", "license": "MIT"},
         inertia=np.eye(3),
     )

@@ -103,7 +103,7 @@ def _continuous(q: np.ndarray) -> np.ndarray:
 
 def nadir_attitude(
     position: np.ndarray,
-    velocity: np.ndarray,
+    velocity: np.ndarray | None,
     sun: np.ndarray | None = None,
     yaw_steering: bool = False,
 ) -> np.ndarray:
@@ -113,6 +113,9 @@ def nadir_attitude(
     ----------
     position, velocity : (n, 3) array
         Geocentric position and velocity of the object, inertial frame (any consistent units).
+        A yaw-steered profile needs no velocity: where the Sun is on the nadir line (its yaw
+        undefined) the ``y`` axis is then east, ``Ẑ × r̂`` (``Ẑ`` the inertial pole),
+        instead of the negative orbit normal.
     sun : (n, 3) array, optional
         Object → Sun vectors, inertial frame (any unit); required with ``yaw_steering``.
     yaw_steering : bool
@@ -124,9 +127,14 @@ def nadir_attitude(
         Quaternions inertial → body, sign continuous in time.
     """
     r = _unit(_as_vectors(position, "position"), "position")
-    h = _unit(np.cross(r, _as_vectors(velocity, "velocity")), "the orbit normal r × v")
+    if velocity is None:
+        if not yaw_steering:
+            raise ValueError("the nadir profile needs the velocity unless it is yaw-steered")
+        east = np.cross([0.0, 0.0, 1.0], r)
+        y = east / np.maximum(np.linalg.norm(east, axis=-1, keepdims=True), _DEGENERATE)
+    else:
+        y = -_unit(np.cross(r, _as_vectors(velocity, "velocity")), "the orbit normal r × v")
     z = -r
-    y = -h
     if yaw_steering:
         if sun is None:
             raise ValueError("yaw steering needs the object → Sun vectors")
@@ -227,8 +235,11 @@ def profile_attitude(
     if reference is not None and profile != "inertial":
         raise ValueError("a reference attitude applies to the inertial profile only")
     if profile == "nadir":
-        if position is None or velocity is None:
-            raise ValueError("the nadir profile needs the object's position and velocity")
+        if position is None or (velocity is None and not yaw_steering):
+            raise ValueError(
+                "the nadir profile needs the object's position and velocity (the position "
+                "alone when yaw-steered)"
+            )
         q_ref = nadir_attitude(position, velocity, sun, yaw_steering)
     elif profile == "sun-pointing":
         if sun is None:
@@ -302,14 +313,20 @@ def profile_states(
     """
     position = velocity = None
     if profile == "nadir":
-        if not (observations.has_object_position and observations.has_object_velocity):
+        needs_velocity = not yaw_steering
+        if not observations.has_object_position or (
+            needs_velocity and not observations.has_object_velocity
+        ):
             where = observations.source or observations.name
+            columns = OBJECT_COLUMNS if needs_velocity else OBJECT_COLUMNS[:3]
             raise ValueError(
-                f"{where}: the nadir profile needs the object's position and velocity "
-                f"(columns {', '.join(OBJECT_COLUMNS)}): write the file with "
-                "'lightcurve geometry'"
+                f"{where}: the nadir profile needs the object's "
+                f"{'position and velocity' if needs_velocity else 'position'} "
+                f"(columns {', '.join(columns)}): write the file with 'lightcurve geometry'"
+                + ("" if needs_velocity else " or 'import'")
             )
-        position, velocity = observations.object_positions, observations.object_velocities
+        position = observations.object_positions
+        velocity = observations.object_velocities if observations.has_object_velocity else None
     q = profile_attitude(
         profile,
         position=position,

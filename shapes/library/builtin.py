@@ -12,7 +12,8 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from shapes import primitives
+from brdf.materials import load_presets
+from shapes import FacetModel, Material, primitives
 from shapes.library.core import ShapeLibrary, builtin_library_path
 from shapes.library.manifest import LOCK
 from shapes.material import REGOLITH
@@ -55,6 +56,39 @@ _PRIMITIVES = {
         "(15.5 m span), array normal +x; inertia of a 3000 kg bus, 3 kg/m² panels, 10 kg yokes",
     ),
 }
+
+
+def _starlink() -> FacetModel:
+    """Starlink v1.5 as two surfaces in the frame of the yaw-steered nadir profile: the
+    chassis's underside facing nadir (+z), the solar array, perpendicular to it, facing the
+    Sun's horizontal direction (+x); materials of the lab fits (``brdf/data/materials.toml``,
+    Fankhauser, Askari & Tyson 2023)."""
+    presets = load_presets()
+    materials = {
+        group: Material(presets[preset].model, dict(presets[preset].params), name=group)
+        for group, preset in (
+            ("chassis", "starlink-chassis"),
+            ("solar_array", "starlink-solar-array"),
+        )
+    }
+    return primitives.panels(
+        {
+            "chassis": ((0.0, 0.0, 1.0), 3.64, (0.0, 0.0, 0.0)),
+            "solar_array": ((1.0, 0.0, 0.0), 22.68, (2.0, 0.0, -2.0)),
+        },
+        materials,
+        name="starlink_v1_5",
+    )
+
+
+_PRIMITIVES["starlink_v1_5"] = (
+    _starlink,
+    {"mass": 306.0},
+    "Starlink v1.5 as two surfaces (Fankhauser, Askari & Tyson 2023): 3.64 m² chassis "
+    "underside facing +z, 22.68 m² solar array facing +x, lab-fitted two-lobe materials; fly "
+    "it with --profile nadir --yaw-steering (z to nadir, the Sun in the x-z plane) and "
+    "--shadows none as the paper's model; 306 kg thin shell",
+)
 
 #: Articulated entries: (builder, options, parts, description).
 _ARTICULATED = {

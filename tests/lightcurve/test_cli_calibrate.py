@@ -3,7 +3,9 @@
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
+from astropy.time import Time
 
 from lightcurve.cli import main
 
@@ -94,3 +96,70 @@ def test_bad_requests_get_one_clean_line(nights, capsys):
     argv = ["simulate", str(files[0]), "--shape", "box_wing", "--profile", "nadir"]
     assert main([*argv, "--calibration", str(bad), "--out", str(folder / "x.csv")]) != 0
     assert "not a calibration file" in capsys.readouterr().err
+
+
+def test_the_pomenis_workflow_through_the_public_commands(tmp_path, capsys):
+    """import → calibrate (the built-in Starlink, yaw-steered nadir profile) gives the
+    calibration of the dataset module's own attitude law, and a calibration on half the
+    nights predicts the other half as the cross-validation does."""
+    from lightcurve.datasets.starlink import (
+        MOUNT_LEMMON,
+        POMENIS_PATH,
+        pomenis_geometry,
+        read_pomenis,
+        starlink_model,
+    )
+    from lightcurve.photometry.calibration import cross_validate, night_index
+
+    text = POMENIS_PATH.read_text()
+    comments = "".join(line + "\n" for line in text.splitlines() if line.startswith("#"))
+    table = pd.read_csv(POMENIS_PATH, comment="#")
+    night = night_index(
+        Time(pd.to_datetime(table["observation_time"]).to_numpy()).mjd, MOUNT_LEMMON.longitude_deg
+    )
+    halves = []
+    for k, rows in enumerate((night % 2 == 0, night % 2 == 1)):
+        source, out = tmp_path / f"half{k}.csv", tmp_path / f"half{k}_obs.csv"
+        source.write_text(comments + table[rows].to_csv(index=False))
+        argv = ["import", str(source), "--time-column", "observation_time", "--time-format"]
+        argv += ["iso", "--mag-column", "ab_magnitude", "--mag-err", "0.1", "--site"]
+        argv += ["Mount Lemmon", "--alt-az-range-columns"]
+        argv += ["satellite_altitude,satellite_azimuth,satellite_height", "--range-kind"]
+        argv += ["height", "--allow-duplicate-epochs", "--out", str(out)]
+        assert main(argv) == 0
+        halves.append(out)
+    fit = ["--shape", "starlink_v1_5", "--profile", "nadir", "--yaw-steering", "--shadows"]
+    fit += ["none", "--parameters", "chassis.ab,solar_array.ab"]
+    both = tmp_path / "both"
+    argv = ["calibrate", *map(str, halves), *fit, "--folds", "5", "--out", str(both)]
+    assert main(argv) == 0
+    summary = json.loads((both / "summary.json").read_text())
+    observations, q = pomenis_geometry(read_pomenis())
+    reference = cross_validate(
+        starlink_model(),
+        q,
+        observations,
+        night_index(observations.mjd, MOUNT_LEMMON.longitude_deg),
+        folds=5,
+        parameters=["chassis.ab", "solar_array.ab"],
+        shadows="none",
+    )
+    assert summary["n_observations"] == 1173 and summary["nights"] == 79
+    assert summary["train_rms_mag"] == pytest.approx(reference["train_rms_mag"], abs=0.01)
+    assert summary["cv_rms_mag"] == pytest.approx(reference["cv_rms_mag"], abs=0.02)
+    # calibrated on the even nights, the odd ones predicted through simulate --calibration
+    even = tmp_path / "even"
+    assert main(["calibrate", str(halves[0]), *fit, "--out", str(even)]) == 0
+    predicted = tmp_path / "odd_predicted.csv"
+    argv = ["simulate", str(halves[1]), "--shape", "starlink_v1_5", "--profile", "nadir"]
+    argv += ["--yaw-steering", "--shadows", "none", "--calibration"]
+    assert main([*argv, str(even / "calibration.json"), "--out", str(predicted)]) == 0
+    from lightcurve import io
+
+    measured, model = io.read(halves[1]), io.read(predicted)
+    common = np.intersect1d(measured.mjd, model.mjd)
+    residual = (
+        measured.table.set_index("mjd").loc[common, "mag"].to_numpy()
+        - model.table.drop_duplicates("mjd").set_index("mjd").loc[common, "mag"].to_numpy()
+    )
+    assert abs(np.sqrt(np.mean(residual**2)) - summary["cv_rms_mag"]) < 0.1

@@ -22,6 +22,7 @@ BUILTIN = [
     "itokawa",
     "plate",
     "rocket_body",
+    "starlink_v1_5",
 ]
 
 

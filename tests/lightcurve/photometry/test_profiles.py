@@ -216,3 +216,19 @@ def test_mode_identification_tells_stabilised_from_tumbling(night):
     assert summary["attitude_mode"] == TUMBLING and summary["attitude_offsets_deg"] is None
     # Every profile fails the consistency test on the tumbling light curve.
     assert not any(h.consistent for h in spinning.hypotheses if h.mode != TUMBLING)
+
+
+def test_yaw_steering_needs_no_velocity():
+    """Yaw-steered, the attitude depends on the position and the Sun only: the same with or
+    without the velocity; without yaw steering the velocity stays required."""
+    from lightcurve.photometry.profiles import nadir_attitude
+
+    rng = np.random.default_rng(4)
+    position = rng.normal(size=(50, 3)) * 7e6
+    velocity = rng.normal(size=(50, 3)) * 7e3
+    sun = rng.normal(size=(50, 3))
+    with_velocity = nadir_attitude(position, velocity, sun, yaw_steering=True)
+    without = nadir_attitude(position, None, sun, yaw_steering=True)
+    assert np.max(np.degrees(attitude_angle(with_velocity, without))) < 1e-9
+    with pytest.raises(ValueError, match="needs the velocity unless it is yaw-steered"):
+        nadir_attitude(position, None, sun)
