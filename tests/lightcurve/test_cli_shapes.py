@@ -189,9 +189,9 @@ def test_validate_passes_on_every_builtin_shape(capsys):
     code, out, err = _run(capsys, "validate")
     assert code == 0, err
     builtin = ("cube", "box", "plate", "cylinder", "rocket_body", "box_wing", "box_wing_tracking")
-    for name in (*builtin, "itokawa", "bennu"):
+    for name in (*builtin, "starlink_v1_5", "itokawa", "bennu"):
         assert f"ok {name}:" in out
-    assert "9 of 9 shapes valid" in out
+    assert "10 of 10 shapes valid" in out
 
 
 def test_validate_reports_bad_shapes_and_continues(tmp_path, capsys, mesh_file, library_with_first):
