@@ -87,6 +87,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="nadir profile: yaw about the nadir axis to keep the Sun in the body x-z plane",
     )
     parser.add_argument(
+        "--earthshine",
+        action="store_true",
+        help="add the light of a Lambertian Earth (albedo 0.29) and an earthshine_fraction "
+        "column; needs the obj_* columns",
+    )
+    parser.add_argument(
         "--calibration",
         metavar="FILE",
         help="calibration.json of `lightcurve calibrate`: its materials, magnitude offset and "
@@ -210,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
         yaw_steering=args.yaw_steering,
         band=band,
         magnitude_offset=magnitude_offset,
+        earthshine=args.earthshine,
     )
     io.write(result, args.out)
     notes = [

@@ -27,6 +27,7 @@ from scipy.integrate import solve_ivp
 from filters.attitude import quaternion_normalize, validate_inertia
 from lightcurve.io.observations import TRUTH_COLUMNS, Observations, validate_table
 from lightcurve.photometry.bands import band_header, band_offset
+from lightcurve.photometry.earthshine import earthshine_flux
 from lightcurve.photometry.noise import (
     CCDNoise,
     GaussianNoise,
@@ -35,7 +36,7 @@ from lightcurve.photometry.noise import (
     ObservingNoise,
 )
 from lightcurve.photometry.profiles import PROFILES, offset_quaternion, profile_states
-from lightcurve.photometry.render import Renderer
+from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from shapes import FacetModel
 from shapes.articulation import ArticulatedModel
 
@@ -161,6 +162,7 @@ def simulate(
     yaw_steering: bool = False,
     band: tuple[str, str] | None = None,
     magnitude_offset: float = 0.0,
+    earthshine: bool = False,
 ) -> Observations:
     """Simulate a light curve over the epochs of a geometry table.
 
@@ -198,6 +200,10 @@ def simulate(
     magnitude_offset : float
         Added to every magnitude before the noise (mag): a calibrated albedo–area scale
         (:mod:`lightcurve.photometry.calibration`); recorded in the header when not 0.
+    earthshine : bool
+        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`, the
+        default quadrature) and an ``earthshine_fraction`` column (its share of the flux).
+        Needs the object's position (``obj_*`` columns); not for articulated shapes.
 
     Returns
     -------
@@ -216,8 +222,10 @@ def simulate(
         offset_deg=offset_deg,
         yaw_steering=yaw_steering,
     )
-    joints = {}
+    extra: dict[str, np.ndarray] = {}  # columns added to the table: joint angles, earthshine
     if isinstance(shape, ArticulatedModel):
+        if earthshine:
+            raise ValueError("earthshine is not rendered for articulated shapes yet")
         from lightcurve.photometry.articulated import ArticulatedRenderer
 
         renderer = ArticulatedRenderer(shape, shadows=shadows)
@@ -229,12 +237,20 @@ def simulate(
         args = (states[:, :4], geometry.sun_vectors, geometry.observer_vectors)
         magnitude = renderer.magnitude(*args, columns)
         angles = renderer.joint_angles(args[0], args[1], columns)
-        joints = dict(zip(shape.articulation.names, angles, strict=True))
+        for part, angle in zip(shape.articulation.names, angles, strict=True):
+            extra[f"joint_{part}_deg"] = angle
     else:
         renderer = Renderer(shape, shadows=shadows)
-        magnitude = renderer.magnitude(
-            states[:, :4], geometry.sun_vectors, geometry.observer_vectors
-        )
+        sun, observer = geometry.sun_vectors, geometry.observer_vectors
+        flux = np.asarray(renderer.flux(states[:, :4], sun, observer))
+        if earthshine:
+            lit_by_earth = earthshine_flux(
+                renderer, states[:, :4], observer, geometry.object_positions, sun
+            )
+            flux = flux + lit_by_earth
+            with np.errstate(invalid="ignore", divide="ignore"):
+                extra["earthshine_fraction"] = np.where(flux > 0, lit_by_earth / flux, 0.0)
+        magnitude = flux_to_magnitude(flux)
     if band is not None:
         magnitude = magnitude + band_offset(*band)
     magnitude = magnitude + magnitude_offset
@@ -256,8 +272,8 @@ def simulate(
         table[name] = np.asarray(values)[keep]
     for k, column in enumerate(TRUTH_COLUMNS):
         table[column] = states[keep, k]
-    for part, angle in joints.items():
-        table[f"joint_{part}_deg"] = angle[keep]
+    for column, values in extra.items():
+        table[column] = np.asarray(values)[keep]
     meta = dict(geometry.meta)
     meta.update(
         {

@@ -107,3 +107,31 @@ def test_bad_inputs():
         earth_cap_quadrature([0.0, 0.0, 1e6], [1.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="albedo"):
         earth_cap_quadrature([0.0, 0.0, 1e7], [1.0, 0.0, 0.0], albedo=1.5)
+
+
+def test_simulate_adds_the_earth_s_light_and_its_share(tmp_path):
+    from lightcurve import io
+    from lightcurve.cli import main
+    from lightcurve.photometry.simulate import simulate
+    from lightcurve.sky.ephemeris import CircularOrbit, Site, orbit_geometry
+    from shapes import get_library
+
+    site = Site(32.4434, -110.7881, 2790.0, "Mount Lemmon")
+    mjd = 60379.2 + np.arange(0.0, 600.0, 10.0) / 86400.0
+    geometry = orbit_geometry(CircularOrbit.geostationary(-100.0, mjd[0]), site, mjd, "geo")
+    state = {"q0": np.array([0.1, 0.2, 0.3, 0.9]), "omega0": np.radians([0.5, 1.0, -0.3])}
+    box = get_library().load("box")
+    plain = simulate(geometry, box, **state)
+    lit = simulate(geometry, box, **state, earthshine=True)
+    share = lit.table["earthshine_fraction"].to_numpy()
+    assert np.all((share > 0.0) & (share < 0.2))
+    # the magnitudes brighten by exactly the share
+    np.testing.assert_allclose(
+        plain.magnitudes - lit.magnitudes, -2.5 * np.log10(1.0 - share), atol=1e-9
+    )
+    path = tmp_path / "geo.csv"
+    io.write(geometry, path)
+    out = tmp_path / "sim.csv"
+    argv = ["simulate", str(path), "--shape", "box", "--q0", "0,0,0,1"]
+    assert main([*argv, "--omega0", "0.5,1,-0.3", "--earthshine", "--out", str(out)]) == 0
+    assert "earthshine_fraction" in io.read(out).table
