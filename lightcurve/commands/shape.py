@@ -8,9 +8,10 @@ of facets over a near-uniform grid of --normals normals; a non-negative least-sq
 gives the EGI and the Minkowski reconstruction the convex polyhedron (docs/shape.md).
 
 Material: --brdf KIND --param KEY=VALUE … fixes it; --brdf KIND alone (phong,
-ashikhmin-shirley or cook-torrance; default ashikhmin-shirley) fits the specular weight rs
-and the lobe's exponent with rd held at --albedo; other models alone take their registry
-defaults. The absolute size rests on that albedo.
+ashikhmin-shirley or cook-torrance) fits the specular weight rs and the lobe's exponent with
+rd held at --albedo, and without --brdf both Ashikhmin–Shirley and Phong (whose rs = 0 is
+Lambert's model) are tried and the lower χ² kept; other models alone take their registry
+defaults. The absolute size rests on the albedo, assumed or given.
 
 Writes DIR/shape.obj (metres, principal frame; the rotation from the attitudes' body frame
 in its comments), DIR/summary.json, DIR/egi.csv (normals, areas, 1σ), DIR/fit.csv and
@@ -48,8 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--brdf",
         metavar="KIND",
-        default="ashikhmin-shirley",
-        help="registry BRDF; without --param its rs and lobe exponent are fitted",
+        help="registry BRDF; without --param its rs and lobe exponent are fitted "
+        "(default: ashikhmin-shirley and phong fitted, the better kept)",
     )
     parser.add_argument(
         "--param",
@@ -84,16 +85,22 @@ def _attitudes(observations, source: str):
 def _fit(args: argparse.Namespace, epochs):
     import brdf
     from lightcurve.analysis.egi import fit_egi, fit_material
-    from lightcurve.analysis.egi.fit import LOBES
+    from lightcurve.analysis.egi.fit import FITTED_FAMILIES, LOBES
 
-    kind = brdf.describe(args.brdf).name
-    if args.param or kind not in LOBES:
+    if args.param and not args.brdf:
+        raise ValueError("--param needs --brdf KIND")
+    kind = brdf.describe(args.brdf).name if args.brdf else None
+    if args.param or (kind is not None and kind not in LOBES):
         material = brdf.get(kind, **brdf_parameters(args.param))
         fit = fit_egi(epochs, material, normals=args.normals, smoothing=args.smoothing)
         note = f"material given ({kind}); the size holds for its reflectances"
         return fit, note
     fit = fit_material(
-        epochs, kind, normals=args.normals, albedo=args.albedo, smoothing=args.smoothing
+        epochs,
+        FITTED_FAMILIES if kind is None else (kind,),
+        normals=args.normals,
+        albedo=args.albedo,
+        smoothing=args.smoothing,
     )
     note = f"diffuse albedo rd = {args.albedo:g} assumed; rs and the lobe fitted"
     return fit, note

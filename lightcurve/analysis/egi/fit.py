@@ -26,6 +26,7 @@ A closed surface has ``Σ_n a_n n = 0`` (Minkowski 1897); three rows of weight
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -175,7 +176,7 @@ def fit_egi(
     normals, design = grid, grid_design
     spacing = math.sqrt(4.0 * math.pi / len(grid))
     for _ in range(refinements):
-        added = cluster_normals(normals, areas, 2.0 * spacing)
+        added, _ = cluster_normals(normals, areas, 2.0 * spacing)
         normals = np.vstack([grid, added])
         design = np.hstack([grid_design, design_matrix(added, epochs, material)])
         if smoothing > 0.0:
@@ -339,8 +340,10 @@ def polish(
     return normals, areas
 
 
-def cluster_normals(normals: np.ndarray, areas: np.ndarray, radius: float) -> np.ndarray:
-    """Area-weighted mean directions of the clusters of non-zero areas.
+def cluster_normals(
+    normals: np.ndarray, areas: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Area-weighted mean directions and total areas of the clusters of non-zero areas.
 
     A flat face whose normal falls between grid normals is fitted as a small cluster of
     neighbouring areas; its weighted mean is the face's normal to within the noise.
@@ -354,8 +357,10 @@ def cluster_normals(normals: np.ndarray, areas: np.ndarray, radius: float) -> np
 
     Returns
     -------
-    (K, 3) float
+    normals : (K, 3) float
         Unit mean normals of the K clusters.
+    areas : (K,) float
+        Their summed areas.
     """
     active = np.flatnonzero(areas > 0)
     pairs = cKDTree(normals[active]).query_pairs(radius, output_type="ndarray")
@@ -365,7 +370,7 @@ def cluster_normals(normals: np.ndarray, areas: np.ndarray, radius: float) -> np
     count, label = connected_components(graph, directed=False)
     sums = np.zeros((count, 3))
     np.add.at(sums, label, areas[active, None] * normals[active])
-    return sums / np.linalg.norm(sums, axis=1, keepdims=True)
+    return sums / np.linalg.norm(sums, axis=1, keepdims=True), np.bincount(label, areas[active])
 
 
 #: The families :func:`fit_material` fits: the lobe's exponent (or width) parameter, its grid,
@@ -375,11 +380,13 @@ LOBES: dict[str, tuple[str, tuple[float, ...], tuple[str, ...]]] = {
     "ashikhmin-shirley": ("nu", (3.0, 10.0, 30.0, 100.0, 300.0), ("nv",)),
     "cook-torrance": ("m", (0.05, 0.1, 0.2, 0.4, 0.8), ()),
 }
+#: The families :func:`fit_material` tries by default.
+FITTED_FAMILIES = ("ashikhmin-shirley", "phong")
 
 
 def fit_material(
     epochs: FitEpochs,
-    family: str = "ashikhmin-shirley",
+    families: Sequence[str] = FITTED_FAMILIES,
     *,
     normals: int = 1000,
     albedo: float = 0.2,
@@ -388,16 +395,18 @@ def fit_material(
     """EGI with a fitted material: the specular weight ``rs`` and the lobe's exponent.
 
     The diffuse albedo ``rd`` is held at ``albedo`` (the flux fixes only the product of
-    reflectance and area, so the absolute size rests on it); ``rs`` is found by Brent's
-    method in its valid range for each exponent of :data:`LOBES`, the best pair kept. The
-    search fits each candidate on :data:`MATERIAL_SEARCH_NORMALS` normals (when ``normals``
-    is larger), then the EGI of the best material on ``normals``.
+    reflectance and area, so the absolute size rests on it); for each family, ``rs`` is found
+    by Brent's method in its valid range for each exponent of :data:`LOBES` (and ``rs = 0``
+    tried on its own), the lowest χ² kept over families and exponents. The search fits each
+    candidate on :data:`MATERIAL_SEARCH_NORMALS` normals (when ``normals`` is larger) with one
+    refinement, then the EGI of the best material on ``normals``.
 
     Parameters
     ----------
     epochs : FitEpochs
-    family : {"ashikhmin-shirley", "phong", "cook-torrance"}
-        Registry name of the model fitted (other parameters at their defaults).
+    families : sequence of {"ashikhmin-shirley", "phong", "cook-torrance"}
+        Registry names of the models tried (other parameters at their defaults). Phong
+        with ``rs = 0`` is Lambert's model; Ashikhmin–Shirley's diffuse term is not.
     normals : int
         Normals of the final fit.
     albedo : float
@@ -409,33 +418,40 @@ def fit_material(
     -------
     EGIFit
     """
-    name = brdf.describe(family).name
-    if name not in LOBES:
-        raise ValueError(f"a fitted material is one of {', '.join(LOBES)}; got {family!r}")
+    names = [brdf.describe(family).name for family in families]
+    unknown = [name for name in names if name not in LOBES]
+    if unknown or not names:
+        raise ValueError(f"a fitted material is one of {', '.join(LOBES)}; got {unknown or names}")
     if not 0.0 < albedo < 1.0:
         raise ValueError(f"the assumed diffuse albedo rd must be in (0, 1), got {albedo}")
     _check_epochs(len(epochs), normals)
-    lobe, grid_values, tied = LOBES[name]
-    top = 1.0 - albedo if brdf.describe(name).weights else 1.0
     search = normal_grid(min(normals, MATERIAL_SEARCH_NORMALS))
+    best: tuple[float, brdf.BRDF] | None = None
+    for name in names:
+        top = 1.0 - albedo if brdf.describe(name).weights else 1.0
+        exponents = LOBES[name][1]
 
-    def material(rs: float, value: float) -> brdf.BRDF:
-        params = {"rd": albedo, "rs": min(max(rs, 0.0), top), lobe: value}
-        return brdf.get(name, **params, **dict.fromkeys(tied, value))
+        def chi2(rs: float, value: float, name: str = name) -> float:
+            chosen = _lobe_material(name, albedo, rs, value)
+            return fit_egi(epochs, chosen, normals=search, smoothing=smoothing, refinements=1).chi2
 
-    best: tuple[float, float, float] | None = None
-    for value in grid_values:
+        tried = [(0.0, exponents[0], chi2(0.0, exponents[0]))]
+        for value in exponents:
+            found = minimize_scalar(
+                chi2, bounds=(0.0, top), args=(value,), method="bounded", options={"xatol": 0.005}
+            )
+            tried.append((float(found.x), value, float(found.fun)))
+        rs, value, lowest = min(tried, key=lambda item: item[2])
+        if best is None or lowest < best[0]:
+            best = (lowest, _lobe_material(name, albedo, min(rs, top), value))
+    return fit_egi(epochs, best[1], normals=normals, smoothing=smoothing)
 
-        def chi2(rs: float, value: float = value) -> float:
-            chosen = material(rs, value)
-            design = design_matrix(search, epochs, chosen)
-            return _chi2(design @ _solve(design, epochs, smoothing, search), epochs)
 
-        found = minimize_scalar(chi2, bounds=(0.0, top), method="bounded", options={"xatol": 0.005})
-        if best is None or found.fun < best[0]:
-            best = (float(found.fun), float(found.x), value)
-    _, rs, value = best
-    return fit_egi(epochs, material(rs, value), normals=normals, smoothing=smoothing)
+def _lobe_material(name: str, albedo: float, rs: float, value: float) -> brdf.BRDF:
+    """Model ``name`` with ``rd = albedo``, specular weight ``rs`` and lobe ``value``."""
+    lobe, _, tied = LOBES[name]
+    params = {"rd": albedo, "rs": max(rs, 0.0), lobe: value}
+    return brdf.get(name, **params, **dict.fromkeys(tied, value))
 
 
 def _check_epochs(count: int, normals: int) -> None:

@@ -8,9 +8,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcurve.analysis.convex.minkowski import equivalent_ellipsoid, minkowski_polyhedron
+from lightcurve.analysis.egi.fit import cluster_normals
 from shapes import FacetModel
 
 __all__ = ["ConvexSolid", "axis_ratios", "convex_solid"]
+
+#: Normals closer than this (chord ≈ rad: 0.5°) are one facet of the polyhedron.
+MERGE_RADIUS = 0.0087
+#: Largest mismatch of the polyhedron's relative facet areas to the EGI's.
+MINKOWSKI_TOL = 1e-8
 
 
 @dataclass(frozen=True)
@@ -49,8 +55,13 @@ def axis_ratios(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def _polyhedron(normals: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Minkowski polyhedron with surface area ``Σ areas`` (m²), centred on its centroid."""
-    vertices, faces = minkowski_polyhedron(normals, areas)
+    """Minkowski polyhedron with surface area ``Σ areas`` (m²), centred on its centroid.
+
+    Normals within :data:`MERGE_RADIUS` of each other are merged first (area-weighted mean):
+    nearly parallel facets make slivers that the Newton iteration resolves slowly.
+    """
+    merged, total = cluster_normals(normals, areas, MERGE_RADIUS)
+    vertices, faces = minkowski_polyhedron(merged, total, tol=MINKOWSKI_TOL)
     triangles = vertices[faces]
     surface = (
         0.5
