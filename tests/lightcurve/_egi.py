@@ -19,10 +19,12 @@ def known_attitude_file(
     shape: FacetModel, path: Path, *, epochs: int, seed: int, noise_mag: float = 0.02
 ) -> Path:
     """An observation file of ``shape`` at ``epochs`` random attitudes and Sun/observer
-    directions (phase angles below 120°, lit and seen), Gaussian noise ``noise_mag`` (seeded), with the
-    truth columns; written to ``path``."""
+    directions (phase angles below 120°, lit and seen), Gaussian noise ``noise_mag``
+    (seeded), with the truth columns; written to ``path``."""
     q, sun, obs = random_geometry(3 * epochs, seed)
-    phase = np.arccos(np.sum(sun * obs, 1) / np.linalg.norm(sun, axis=1) / np.linalg.norm(obs, axis=1))
+    phase = np.arccos(
+        np.sum(sun * obs, 1) / np.linalg.norm(sun, axis=1) / np.linalg.norm(obs, axis=1)
+    )
     mag = Renderer(shape).magnitude(q, sun, obs)
     keep = np.flatnonzero((phase < np.radians(120.0)) & np.isfinite(mag))[:epochs]
     q, sun, obs, mag = q[keep], sun[keep], obs[keep], mag[keep]
