@@ -17,6 +17,7 @@ import numpy as np
 from filters.attitude import attitude_matrix
 from lightcurve.io.observations import Observations
 from lightcurve.photometry.render import magnitude_to_flux
+from lightcurve.sky.geometry import AU_M
 
 __all__ = ["FitEpochs", "result_attitudes", "truth_attitudes"]
 
@@ -35,7 +36,8 @@ class FitEpochs:
     light, view : (E, 3) float
         Unit vectors to the Sun and to the observer, body frame.
     scale : (E,) float
-        ``1/d²`` (m⁻²), ``d`` the observer range: flux ratio per unit ``ρ A (n·L)(n·V)``.
+        ``(1 AU / r_sun)² / d²`` (m⁻²), ``d`` the observer range and ``r_sun`` the Sun's:
+        flux ratio per unit ``ρ A (n·L)(n·V)``, as the renderer scales it.
     mag, mag_err : (E,) float
         Measured magnitude and its 1σ.
     source : (E,) int
@@ -99,13 +101,14 @@ class FitEpochs:
             matrices = attitude_matrix(np.asarray(q, float))
             sun, observer = obs.sun_vectors, obs.observer_vectors
             distance = np.linalg.norm(observer, axis=1)
-            light = np.einsum("eij,ej->ei", matrices, sun / np.linalg.norm(sun, axis=1)[:, None])
+            sun_range = np.linalg.norm(sun, axis=1)
+            light = np.einsum("eij,ej->ei", matrices, sun / sun_range[:, None])
             view = np.einsum("eij,ej->ei", matrices, observer / distance[:, None])
             parts.append(
                 (
                     light,
                     view,
-                    1.0 / distance**2,
+                    (AU_M / sun_range) ** 2 / distance**2,
                     obs.magnitudes,
                     obs.magnitude_errors,
                     np.full(len(obs), k),

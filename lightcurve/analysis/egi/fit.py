@@ -331,8 +331,16 @@ def polish(
         return jac * scale[:, None]
 
     x0 = np.concatenate([np.zeros(2 * count), np.log(areas[large])])
+    # A facet turns by at most ~17° and grows or shrinks by at most e³ within one polish.
+    reach = np.concatenate([np.full(2 * count, 0.3), np.full(count, 3.0)])
     found = least_squares(
-        residuals, x0, jac=jacobian, method="trf", ftol=1e-6, max_nfev=POLISH_STEPS
+        residuals,
+        x0,
+        jac=jacobian,
+        bounds=(x0 - reach, x0 + reach),
+        method="trf",
+        ftol=1e-6,
+        max_nfev=POLISH_STEPS,
     )
     moved, sizes = unpack(found.x)
     normals, areas = normals.copy(), areas.copy()

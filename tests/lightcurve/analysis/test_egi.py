@@ -19,6 +19,7 @@ from lightcurve.analysis.egi import (
 )
 from lightcurve.analysis.egi.epochs import result_attitudes, truth_attitudes
 from lightcurve.analysis.egi.fit import cluster_normals
+from lightcurve.io.observations import Observations
 from lightcurve.photometry.render import Renderer
 from shapes import material, primitives
 
@@ -66,19 +67,19 @@ def test_grid_is_unit_and_near_uniform():
 def test_design_matrix_times_box_egi_is_the_renderer_flux(model):
     """Independent check: the EGI design against the project's renderer on the box mesh."""
     q, sun, obs = random_geometry(200, 5)
-    from filters.attitude import attitude_matrix
-
-    a = attitude_matrix(q)
-    distance = np.linalg.norm(obs, axis=1)
-    epochs = FitEpochs(
-        np.einsum("eij,ej->ei", a, sun / np.linalg.norm(sun, axis=1)[:, None]),
-        np.einsum("eij,ej->ei", a, obs / distance[:, None]),
-        1.0 / distance**2,
-        np.zeros(200),
-        np.full(200, 0.01),
-        np.zeros(200, int),
-        np.arange(200.0),
+    sun *= np.linspace(0.98, 1.02, 200)[:, None]  # the renderer scales by (1 AU / r_sun)²
+    obs_file = Observations(
+        pd.DataFrame(
+            {
+                "mjd": 60000.0 + np.arange(200) / 86400.0,
+                "mag": 10.0,
+                "mag_err": 0.01,
+                **{f"sun_{a}": sun[:, i] / 1e3 for i, a in enumerate("xyz")},
+                **{f"obs_{a}": obs[:, i] / 1e3 for i, a in enumerate("xyz")},
+            }
+        )
     )
+    epochs = FitEpochs.from_observations([obs_file], [q])
     params = dict(model.params)
     flux = design_matrix(BOX_NORMALS, epochs, brdf.get(model.brdf, **params)) @ BOX_AREAS
     rendered = Renderer(_box(model), shadows="none").flux(q, sun, obs)
