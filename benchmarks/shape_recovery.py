@@ -13,6 +13,9 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Jan�
 ``geo_tumbling``
     a 40-minute geostationary arc at 2 s, the object tumbling torque-free (uniform random
     attitude, rates of uniform direction, 0.3–1.5 °/s);
+``geo_two_nights``
+    two such arcs of the same object on two nights (another start state each), fitted
+    together;
 ``geo_night``
     a stabilised (nadir-pointing, fixed random offset) object over a 6-hour night at 30 s.
 
@@ -66,7 +69,7 @@ from lightcurve.photometry.simulate import GaussianNoise, simulate
 from shapes import FacetModel, Material, primitives
 
 MATERIAL = Material("ashikhmin-shirley", {"rd": 0.35, "rs": 0.25, "nu": 40, "nv": 40})
-SCENARIOS = ("geo_tumbling", "geo_night")
+SCENARIOS = ("geo_tumbling", "geo_two_nights", "geo_night")
 RATE_DEG_S = (0.3, 1.5)
 NOISE_MAG = (0.02, 0.05)
 NIGHT_S, NIGHT_CADENCE_S = 6 * 3600.0, 30.0
@@ -98,7 +101,7 @@ def observe(
     shape: FacetModel, scenario: str, rng: np.random.Generator, noise_mag: float
 ) -> Observations:
     """One simulated arc of ``scenario`` (module docstring)."""
-    if scenario == "geo_tumbling":
+    if scenario != "geo_night":
         geometry, _ = geo_geometry(rng)
         omega = rng.standard_normal(3)
         omega *= math.radians(rng.uniform(*RATE_DEG_S)) / np.linalg.norm(omega)
@@ -177,9 +180,11 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
     k = SCENARIOS.index(scenario)
     rng = np.random.default_rng([args.seed, run, k, sorted(objects()).index(name)])
     noise_mag = float(rng.uniform(*NOISE_MAG))
-    fitted_on = observe(shape, scenario, rng, noise_mag)
+    arcs = [observe(shape, scenario, rng, noise_mag)]
+    if scenario == "geo_two_nights":
+        arcs.append(observe(shape, scenario, rng, noise_mag))
     held_out = observe(shape, scenario, rng, noise_mag)
-    epochs = _epochs(fitted_on)
+    epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
     record: dict[str, Any] = {
         "object": name,
         "scenario": scenario,

@@ -172,7 +172,7 @@ def fit_egi(
     if not smoothing >= 0.0:
         raise ValueError(f"smoothing must be ≥ 0, got {smoothing}")
     grid_design = design_matrix(grid, epochs, material)
-    areas = _solve(grid_design, epochs, smoothing, grid)
+    areas = _solve(grid_design, grid, epochs, smoothing)
     normals, design = grid, grid_design
     spacing = math.sqrt(4.0 * math.pi / len(grid))
     for _ in range(refinements):
@@ -180,12 +180,12 @@ def fit_egi(
         normals = np.vstack([grid, added])
         design = np.hstack([grid_design, design_matrix(added, epochs, material)])
         if smoothing > 0.0:
-            areas = _solve(design, epochs, smoothing, grid)
+            areas = _solve(design, normals, epochs, smoothing, len(grid))
         else:  # the grid normals near the clusters, and the clusters' means
             near = _near(grid, added, 3.0 * spacing)
             local = np.concatenate([near, np.arange(len(grid), len(normals))])
             areas = np.zeros(len(normals))
-            areas[local] = _solve(design[:, local], epochs, 0.0)
+            areas[local] = _solve(design[:, local], normals[local], epochs, 0.0)
         if polished:
             normals, areas = polish(normals, areas, epochs, material)
             design[:, areas > 0] = design_matrix(normals[areas > 0], epochs, material)
@@ -200,21 +200,26 @@ def _near(grid: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
 
 def _solve(
     design: np.ndarray,
+    normals: np.ndarray,
     epochs: FitEpochs,
     smoothing: float,
-    grid: np.ndarray | None = None,
+    smoothed: int | None = None,
 ) -> np.ndarray:
-    """Non-negative areas of the columns of ``design``; with ``smoothing`` > 0 the first
-    ``len(grid)`` columns (the grid's normals) under the smoothness term."""
+    """Non-negative areas of the columns of ``design`` (normals ``normals``) under the
+    closure rows and, with ``smoothing`` > 0, the smoothness term on the first ``smoothed``
+    (default all) normals."""
     sigma = epochs.flux_sigma
     weighted = design / sigma[:, None]
-    system, rhs = weighted, epochs.flux / sigma
+    closure = math.sqrt(CLOSURE_WEIGHT * np.sum(weighted**2) / design.shape[1]) * normals.T
+    system = np.vstack([weighted, closure])
+    rhs = np.concatenate([epochs.flux / sigma, np.zeros(3)])
     if smoothing > 0.0:
-        operator = np.zeros((len(grid), design.shape[1]))
-        operator[:, : len(grid)] = smoothness_operator(grid)
+        count = design.shape[1] if smoothed is None else smoothed
+        operator = np.zeros((count, design.shape[1]))
+        operator[:, :count] = smoothness_operator(normals[:count])
         weight = smoothing * np.sum(weighted**2) / np.sum(operator**2)
         system = np.vstack([system, math.sqrt(weight) * operator])
-        rhs = np.concatenate([rhs, np.zeros(len(grid))])
+        rhs = np.concatenate([rhs, np.zeros(count)])
     # Columns scaled to unit norm (areas seen rarely and often alike); never-seen normals 0.
     norms = np.linalg.norm(system, axis=0)
     seen = norms > 0
@@ -446,7 +451,7 @@ def fit_material(
         tried = [(0.0, exponents[0], chi2(0.0, exponents[0]))]
         for value in exponents:
             found = minimize_scalar(
-                chi2, bounds=(0.0, top), args=(value,), method="bounded", options={"xatol": 0.005}
+                chi2, bounds=(0.0, top), args=(value,), method="bounded", options={"xatol": 0.01}
             )
             tried.append((float(found.x), value, float(found.fun)))
         rs, value, lowest = min(tried, key=lambda item: item[2])
@@ -496,5 +501,5 @@ def bootstrap_areas(epochs: FitEpochs, fit: EGIFit, *, samples: int, seed: int) 
     for k in range(samples):
         drawn = fit.model_mag + epochs.mag_err * rng.standard_normal(len(epochs))
         noisy = replace(epochs, mag=drawn)
-        out[k] = _solve(design, noisy, 0.0)
+        out[k] = _solve(design, fit.normals, noisy, 0.0)
     return out
