@@ -93,7 +93,9 @@ def objects() -> dict[str, FacetModel]:
         **boxes,
         "prism": primitives.cylinder(1.0, 3.0, sections=3, materials=MATERIAL, name="prism"),
         "chiral": FacetModel(hull.vertices, hull.faces, materials=MATERIAL, name="chiral"),
-        "cylinder": primitives.cylinder(0.6, 2.5, sections=32, materials=MATERIAL),
+        "cylinder32": primitives.cylinder(
+            0.6, 2.5, sections=32, materials=MATERIAL, name="cylinder32"
+        ),
     }
 
 
