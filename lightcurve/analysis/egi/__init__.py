@@ -16,6 +16,7 @@ Modules
 - :mod:`~lightcurve.analysis.egi.fit` — the design matrix, the non-negative fit, the material
   search and the areas' 1σ.
 - :mod:`~lightcurve.analysis.egi.solid` — the convex mesh in metres and its axis ratios with 1σ.
+- :mod:`~lightcurve.analysis.egi.plots` — the figure of a fit.
 
 This ``__init__`` only hands the public names on.
 """
