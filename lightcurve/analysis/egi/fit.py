@@ -393,6 +393,8 @@ LOBES: dict[str, tuple[str, tuple[float, ...], tuple[str, ...]]] = {
     "ashikhmin-shirley": ("nu", (3.0, 10.0, 30.0, 100.0, 300.0), ("nv",)),
     "cook-torrance": ("m", (0.05, 0.1, 0.2, 0.4, 0.8), ()),
 }
+#: Tolerance of the lobe's logarithm in :func:`fit_material`'s refinement between grid values.
+LOBE_LOG_TOLERANCE = 0.05
 #: The families :func:`fit_material` tries by default.
 FITTED_FAMILIES = ("ashikhmin-shirley", "phong")
 
@@ -410,7 +412,9 @@ def fit_material(
     The diffuse albedo ``rd`` is held at ``albedo`` (the flux fixes only the product of
     reflectance and area, so the absolute size rests on it); for each family, ``rs`` is found
     by Brent's method in its valid range for each exponent of :data:`LOBES` (and ``rs = 0``
-    tried on its own), the lowest χ² kept over families and exponents. The search fits each
+    tried on its own), the lowest χ² kept over families and exponents; the best family's
+    lobe is then refined by Brent's method on its logarithm between the grid values next to
+    the best one (each trial lobe with its best ``rs``). The search fits each
     candidate on :data:`MATERIAL_SEARCH_NORMALS` normals (when ``normals`` is larger) with one
     refinement, then the EGI of the best material on ``normals``.
 
@@ -439,25 +443,39 @@ def fit_material(
         raise ValueError(f"the assumed diffuse albedo rd must be in (0, 1), got {albedo}")
     _check_epochs(len(epochs), normals)
     search = normal_grid(min(normals, MATERIAL_SEARCH_NORMALS))
-    best: tuple[float, brdf.BRDF] | None = None
-    for name in names:
+
+    def chi2(rs: float, name: str, value: float) -> float:
+        chosen = _lobe_material(name, albedo, rs, value)
+        return fit_egi(epochs, chosen, normals=search, smoothing=smoothing, refinements=1).chi2
+
+    def best_rs(name: str, value: float) -> tuple[float, float]:
+        """The lowest χ² over ``rs`` at lobe ``value``, and that ``rs``."""
         top = 1.0 - albedo if brdf.describe(name).weights else 1.0
-        exponents = LOBES[name][1]
+        found = minimize_scalar(
+            chi2, bounds=(0.0, top), args=(name, value), method="bounded", options={"xatol": 0.01}
+        )
+        return float(found.fun), min(float(found.x), top)
 
-        def chi2(rs: float, value: float, name: str = name) -> float:
-            chosen = _lobe_material(name, albedo, rs, value)
-            return fit_egi(epochs, chosen, normals=search, smoothing=smoothing, refinements=1).chi2
-
-        tried = [(0.0, exponents[0], chi2(0.0, exponents[0]))]
-        for value in exponents:
-            found = minimize_scalar(
-                chi2, bounds=(0.0, top), args=(value,), method="bounded", options={"xatol": 0.01}
-            )
-            tried.append((float(found.x), value, float(found.fun)))
-        rs, value, lowest = min(tried, key=lambda item: item[2])
-        if best is None or lowest < best[0]:
-            best = (lowest, _lobe_material(name, albedo, min(rs, top), value))
-    return fit_egi(epochs, best[1], normals=normals, smoothing=smoothing)
+    # (χ², rs, family, lobe): rs = 0 once per family, then the grid of lobes.
+    tried = [(chi2(0.0, name, LOBES[name][1][0]), 0.0, name, LOBES[name][1][0]) for name in names]
+    tried += [(*best_rs(name, value), name, value) for name in names for value in LOBES[name][1]]
+    lowest, rs, name, value = min(tried, key=lambda item: item[0])
+    if rs > 0.0:  # the lobe between the grid's neighbours of the best, by Brent on its log
+        grid = LOBES[name][1]
+        k = grid.index(value)
+        span = (math.log(grid[max(k - 1, 0)]), math.log(grid[min(k + 1, len(grid) - 1)]))
+        found = minimize_scalar(
+            lambda log_value: best_rs(name, math.exp(log_value))[0],
+            bounds=span,
+            method="bounded",
+            options={"xatol": LOBE_LOG_TOLERANCE},
+        )
+        if found.fun < lowest:
+            value = math.exp(float(found.x))
+            rs = best_rs(name, value)[1]
+    return fit_egi(
+        epochs, _lobe_material(name, albedo, rs, value), normals=normals, smoothing=smoothing
+    )
 
 
 def _lobe_material(name: str, albedo: float, rs: float, value: float) -> brdf.BRDF:
