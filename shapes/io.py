@@ -20,7 +20,7 @@ Coordinates are converted to metres from the declared ``unit`` ("m" or "km").
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -269,7 +269,13 @@ def load_damit(path: str | os.PathLike[str], **options: Any) -> FacetModel:
     return load(path, file_format="damit", **options)
 
 
-def write_obj(model: FacetModel, path: str | os.PathLike[str], unit: str | None = None) -> None:
+def write_obj(
+    model: FacetModel,
+    path: str | os.PathLike[str],
+    unit: str | None = None,
+    *,
+    comments: Sequence[str] = (),
+) -> None:
     """Write a model as a grouped OBJ (``g <group>`` blocks), atomically.
 
     Parameters
@@ -279,6 +285,8 @@ def write_obj(model: FacetModel, path: str | os.PathLike[str], unit: str | None 
         Destination; written to a temporary file in the same folder, then renamed.
     unit : {"m", "km"}, optional
         Unit of the written coordinates (default: the model's source unit).
+    comments : sequence of str
+        Lines written as ``# …`` comments after the header line.
 
     Notes
     -----
@@ -290,6 +298,7 @@ def write_obj(model: FacetModel, path: str | os.PathLike[str], unit: str | None 
     path = Path(path)
     coords = model.vertices / UNIT_SCALE[unit]
     lines = [f"# {model.name}: {len(model.faces)} facets, unit {unit}, written by shapes"]
+    lines += [f"# {line}" for line in comments]
     lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in coords.tolist()]
     for k, group in enumerate(model.group_names):
         lines.append(f"g {group}")

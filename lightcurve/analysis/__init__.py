@@ -10,6 +10,8 @@ Modules
   spin periods, body normals of stabilised satellites (package).
 - :mod:`~lightcurve.analysis.convex` — convex shape and spin inversion (Kaasalainen & Torppa
   2001; package).
+- :mod:`~lightcurve.analysis.egi` — convex shapes of objects with known attitudes: the
+  extended Gaussian image and its Minkowski solid (package).
 - :mod:`~lightcurve.analysis.photometric_planning` — which epochs of a light curve carry
   attitude information: Fisher-information scheduling.
 """

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -134,6 +134,26 @@ def add_scenario_arguments(
         parser.add_argument("--runs", type=positive_int, default=runs, help="Monte Carlo runs")
     if seed is not None:
         parser.add_argument("--seed", type=int, default=seed, help=seed_help)
+
+
+def brdf_parameters(items: Sequence[str]) -> dict[str, float]:
+    """``--param KEY=VALUE`` strings → BRDF parameters.
+
+    Raises
+    ------
+    ValueError
+        An item that is not ``key=number``.
+    """
+    params = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or not key.strip():
+                raise ValueError
+            params[key.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--param: expected key=value with a number, got {item!r}") from None
+    return params
 
 
 def add_observation_files(parser: argparse.ArgumentParser) -> None:

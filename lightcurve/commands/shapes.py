@@ -17,6 +17,7 @@ import numpy as np
 
 import brdf
 import shapes
+from lightcurve.commands._args import brdf_parameters
 
 if TYPE_CHECKING:
     from shapes.articulation import ArticulatedModel
@@ -38,22 +39,6 @@ def _floats(text: str, what: str, counts: Sequence[int]) -> list[float]:
             f"got {text!r}"
         )
     return values
-
-
-def _params(items: Sequence[str]) -> dict[str, float]:
-    """``key=value`` strings → BRDF parameters."""
-    params = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        try:
-            if not sep or not key.strip():
-                raise ValueError
-            params[key.strip()] = float(value)
-        except ValueError:
-            raise shapes.ShapeError(
-                f"--param: expected key=value with a number, got {item!r}"
-            ) from None
-    return params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -260,7 +245,7 @@ def _material(kind: str, items: Sequence[str]) -> shapes.Material:
     the model's typical value as the option to pass."""
     from shapes.material import BRDF_PARAMETERS
 
-    params = _params(items)
+    params = brdf_parameters(items)
     try:
         return shapes.Material(kind, params)
     except shapes.ShapeError as exc:

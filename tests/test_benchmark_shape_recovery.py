@@ -1,0 +1,61 @@
+"""The shape-recovery benchmark's core on one small case: its objects, scores and summary."""
+
+import numpy as np
+import pytest
+
+from benchmarks import shape_recovery
+from lightcurve.analysis.egi import EGIFit, FitEpochs, fit_egi
+from lightcurve.analysis.egi.epochs import truth_attitudes
+
+
+def test_objects_are_closed_convex_and_not_in_the_library():
+    from shapes import get_library
+
+    names = set(get_library().names())
+    for name, model in shape_recovery.objects().items():
+        assert name not in names
+        assert model.mesh.is_watertight and model.mesh.is_convex
+
+
+@pytest.fixture(scope="module")
+def arcs():
+    shape = shape_recovery.objects()["box_3x2x1"]
+    rng = np.random.default_rng(5)
+    fitted_on = shape_recovery.observe(shape, "geo_tumbling", rng, 0.03)
+    held_out = shape_recovery.observe(shape, "geo_tumbling", rng, 0.03)
+    return shape, fitted_on, held_out
+
+
+def test_the_true_egi_scores_at_the_noise(arcs):
+    shape, _, held_out = arcs
+    compiled = shape.compiled()
+    truth = EGIFit(
+        compiled.normals,
+        compiled.areas,
+        np.zeros(len(compiled.areas)),
+        shape_recovery._true_material(),
+        np.zeros(1),
+        0.0,
+        0.0,
+    )
+    scored = shape_recovery.score(shape, truth, held_out, 0.03)
+    assert scored["heldout_ratio"] == pytest.approx(1.0, abs=0.1)
+    assert scored["axis_ratio_error"] < 1e-6
+    assert max(scored["normal_error_deg"]) < 1e-6
+    assert scored["n_facets"] == 6
+
+
+def test_a_known_material_fit_is_scored_and_summarised(arcs):
+    shape, fitted_on, held_out = arcs
+    epochs = FitEpochs.from_observations([fitted_on], [truth_attitudes(fitted_on)])
+    fit = fit_egi(epochs, shape_recovery._true_material(), normals=500)
+    scored = shape_recovery.score(shape, fit, held_out, 0.03)
+    assert max(scored["normal_error_deg"]) < 5.0
+    record = {
+        "scenario": "geo_tumbling",
+        "known": {"fit_s": 1.0, **scored},
+        "fitted": {"error": "x"},
+    }
+    summary = shape_recovery.summarise([record])
+    assert summary["geo_tumbling/known"]["runs"] == 1
+    assert summary["geo_tumbling/fitted"]["failed"] == 1
