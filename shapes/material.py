@@ -38,6 +38,8 @@ __all__ = [
     "MLI",
     "REGOLITH",
     "SOLAR_CELL",
+    "STARLINK_CHASSIS",
+    "STARLINK_SOLAR_ARRAY",
     "WHITE_PAINT",
     "Material",
 ]
@@ -184,3 +186,34 @@ ALUMINIUM = Material(
 #: a = 0.5, d = 0.1 rad, k = −0.5 rad⁻¹ (the convexinv defaults); the albedo scale ``w`` is
 #: left to the BRDF's default (relative photometry).
 REGOLITH = Material("lommel-seeliger", {"c": 0.1, "a": 0.5, "d": 0.1, "k": -0.5}, name="regolith")
+
+#: Starlink v1.5 chassis underside and solar array: the two-lobe fits to the laboratory
+#: BRDFs of Fankhauser, Askari & Tyson (2023) (the presets ``starlink-chassis`` and
+#: ``starlink-solar-array`` of ``brdf/data/materials.toml``, where their fit is described;
+#: a test keeps the two equal).
+STARLINK_CHASSIS = Material(
+    "two-lobe",
+    {
+        "rd": 0.02819,
+        "rb": 0.2179,
+        "ab": 0.06428,
+        "fb": 1.0,
+        "rn": 0.5631,
+        "mn": 0.007205,
+        "fn": 1.0,
+    },
+    name="chassis",
+)
+STARLINK_SOLAR_ARRAY = Material(
+    "two-lobe",
+    {
+        "rd": 0.006184,
+        "rb": 0.02062,
+        "ab": 0.08117,
+        "fb": 1.0,
+        "rn": 0.9731,
+        "mn": 0.001805,
+        "fn": 0.02208,
+    },
+    name="solar_array",
+)

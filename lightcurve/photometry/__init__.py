@@ -29,4 +29,9 @@ Modules
   flags.
 - :mod:`~lightcurve.photometry.simulate` — light-curve simulation: attitude truth, rendering,
   noise.
+- :mod:`~lightcurve.photometry.bands` — the Sun's magnitude per photometric band and system.
+- :mod:`~lightcurve.photometry.earthshine` — the light of the sunlit Earth on an
+  Earth-orbiting object.
+- :mod:`~lightcurve.photometry.calibration` — a shape's photometric parameters fitted to
+  observations with known attitudes, cross-validated by night.
 """

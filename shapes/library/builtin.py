@@ -12,11 +12,10 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from brdf.materials import load_presets
-from shapes import FacetModel, Material, primitives
+from shapes import FacetModel, primitives
 from shapes.library.core import ShapeLibrary, builtin_library_path
 from shapes.library.manifest import LOCK
-from shapes.material import REGOLITH
+from shapes.material import REGOLITH, STARLINK_CHASSIS, STARLINK_SOLAR_ARRAY
 
 __all__ = ["build_builtin_library"]
 
@@ -61,16 +60,9 @@ _PRIMITIVES = {
 def _starlink() -> FacetModel:
     """Starlink v1.5 as two surfaces in the frame of the yaw-steered nadir profile: the
     chassis's underside facing nadir (+z), the solar array, perpendicular to it, facing the
-    Sun's horizontal direction (+x); materials of the lab fits (``brdf/data/materials.toml``,
-    Fankhauser, Askari & Tyson 2023)."""
-    presets = load_presets()
-    materials = {
-        group: Material(presets[preset].model, dict(presets[preset].params), name=group)
-        for group, preset in (
-            ("chassis", "starlink-chassis"),
-            ("solar_array", "starlink-solar-array"),
-        )
-    }
+    Sun's horizontal direction (+x); the two-lobe fits to the lab BRDFs of Fankhauser, Askari
+    & Tyson (2023) (:data:`shapes.material.STARLINK_CHASSIS`, ``STARLINK_SOLAR_ARRAY``)."""
+    materials = {"chassis": STARLINK_CHASSIS, "solar_array": STARLINK_SOLAR_ARRAY}
     return primitives.panels(
         {
             "chassis": ((0.0, 0.0, 1.0), 3.64, (0.0, 0.0, 0.0)),

@@ -53,3 +53,20 @@ def test_prediction_without_fitting_tracks_the_measurements():
     assert np.all(np.isfinite(result.predicted))
     assert np.corrcoef(result.measured, result.predicted)[0, 1] > 0.5
     assert np.median(np.abs(result.residual)) < 1.5
+
+
+def test_the_library_s_starlink_materials_are_the_lab_presets():
+    """The built-in ``starlink_v1_5`` carries the two-lobe lab fits of the BRDF presets."""
+    from brdf.materials import load_presets
+    from shapes import get_library
+    from shapes.material import STARLINK_CHASSIS, STARLINK_SOLAR_ARRAY
+
+    presets = load_presets()
+    library = get_library().load("starlink_v1_5")
+    for group, constant, preset in (
+        ("chassis", STARLINK_CHASSIS, "starlink-chassis"),
+        ("solar_array", STARLINK_SOLAR_ARRAY, "starlink-solar-array"),
+    ):
+        assert constant.brdf == presets[preset].model
+        assert constant.params == presets[preset].params
+        assert library.materials[group].params == presets[preset].params
