@@ -72,6 +72,46 @@ class CubeSphereGrid:
     def __len__(self) -> int:
         return len(self.directions)
 
+    def refinement_levels(self) -> list[tuple[np.ndarray, np.ndarray | None]]:
+        """The nodes in coarse-to-fine order, each level's with its nearest nodes of the
+        levels before.
+
+        For an even ``n`` the nodes with even ``(i, j)`` on their face are the grid of
+        resolution ``n / 2`` (level 0, no neighbours); level 1 are the midpoints of its cell
+        edges (two neighbours along the edge, ``π / (2 n)`` rad away); level 2 the cell
+        centres (the four level-1 nodes around them, ``π / (2 n)`` rad away). An odd ``n``
+        has one level: every node.
+
+        Returns
+        -------
+        list of (nodes, neighbours)
+            ``nodes (M,)`` rows of :attr:`directions`; ``neighbours (M, m)`` rows of earlier
+            levels, or None for level 0. Every node appears in exactly one level.
+        """
+        index = self.node_index
+        if self.n % 2:
+            return [(np.arange(len(self)), None)]
+        coarse = np.unique(index[:, ::2, ::2])
+        along_i = (index[:, 1::2, ::2], index[:, :-1:2, ::2], index[:, 2::2, ::2])
+        along_j = (index[:, ::2, 1::2], index[:, ::2, :-1:2], index[:, ::2, 2::2])
+        edge = np.concatenate([along_i[0].ravel(), along_j[0].ravel()])
+        edge_neighbours = np.stack(
+            [np.concatenate([along_i[k].ravel(), along_j[k].ravel()]) for k in (1, 2)], axis=1
+        )
+        edge, first = np.unique(edge, return_index=True)  # face seams hold a node twice
+        centre = index[:, 1::2, 1::2]
+        around = (
+            index[:, :-1:2, 1::2],
+            index[:, 2::2, 1::2],
+            index[:, 1::2, :-1:2],
+            index[:, 1::2, 2::2],
+        )
+        return [
+            (coarse, None),
+            (edge, edge_neighbours[first]),
+            (centre.ravel(), np.stack([a.ravel() for a in around], axis=1)),
+        ]
+
     def locate(self, directions: Any) -> tuple[Any, Any]:
         """Corner nodes and barycentric weights of the grid triangle containing each direction.
 

@@ -45,7 +45,9 @@ __all__ = [
     "direction_fractions",
     "full_flags",
     "joint_rows",
+    "mirrored_rays",
     "pair_values",
+    "scatter_rays",
     "segment_layout",
 ]
 
@@ -448,6 +450,51 @@ def full_flags(bits, segment_start, segment_word, segment_mask, full):
             for s in range(segment_start[k], segment_start[k + 1]):
                 if bits[d, segment_word[s]] & segment_mask[s] != segment_mask[s]:
                     full[d, k // 64] &= ~flag
+
+
+@njit(**_JIT)
+def mirrored_rays(directions, normals, origins, needed, ray_origins, ray_directions):
+    """The rays of a table build: from point ``p`` toward direction ``r`` for every
+    ``needed[r, p]``, in row-major order; behind the point's facet (``n_p·d_r < 0``) toward
+    the mirror direction ``d − 2 (n·d) n`` (horizon continuation, :mod:`shapes.visibility.table`).
+
+    Parameters
+    ----------
+    directions : (R, 3) float32
+        Unit directions (scene frame = body frame up to a uniform scaling).
+    normals, origins : (P, 3) float32
+        Facet normal and scene-frame origin of each point.
+    needed : (R, P) bool
+    ray_origins, ray_directions : (needed.sum(), 3) float32
+        Output.
+    """
+    i = 0
+    for r in range(needed.shape[0]):
+        dx, dy, dz = directions[r, 0], directions[r, 1], directions[r, 2]
+        for p in range(needed.shape[1]):
+            if not needed[r, p]:
+                continue
+            nx, ny, nz = normals[p, 0], normals[p, 1], normals[p, 2]
+            twice = 2.0 * min(dx * nx + dy * ny + dz * nz, 0.0)
+            ray_directions[i, 0] = dx - twice * nx
+            ray_directions[i, 1] = dy - twice * ny
+            ray_directions[i, 2] = dz - twice * nz
+            ray_origins[i, 0] = origins[p, 0]
+            ray_origins[i, 1] = origins[p, 1]
+            ray_origins[i, 2] = origins[p, 2]
+            i += 1
+
+
+@njit(**_JIT)
+def scatter_rays(needed, values, out):
+    """``out[r, p] = values[i]`` for the ``i``-th ``needed[r, p]`` in row-major order (the
+    order of :func:`mirrored_rays`)."""
+    i = 0
+    for r in range(needed.shape[0]):
+        for p in range(needed.shape[1]):
+            if needed[r, p]:
+                out[r, p] = values[i]
+                i += 1
 
 
 def segment_layout(
