@@ -145,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve import io
     from lightcurve.photometry.conditions import load_conditions
     from lightcurve.photometry.simulate import GaussianNoise, ObservingNoise, simulate
-    from shapes import get_library
+    from shapes import FacetModel, get_library
 
     if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):
         raise ValueError(
@@ -161,9 +161,11 @@ def run(args: argparse.Namespace) -> int:
     if args.offset_deg is not None and args.profile == "torque-free":
         raise ValueError("--offset-deg applies to stabilised profiles only")
     geometry = io.read(args.geometry, require_magnitudes=False)
-    shape = get_library(args.library).load(
-        args.shape, visibility=args.shadows != "none", articulated=True
-    )
+    library = get_library(args.library)
+    shape = library.load(args.shape, visibility=args.shadows != "none", articulated=True)
+    rigid = isinstance(shape, FacetModel)
+    if args.shadows == "table" and rigid and shape.visibility is None and not shape.is_convex:
+        raise ValueError(library.missing_table(args.shape))
     if args.condition and (args.noise_mag is not None or args.ccd is not None):
         raise ValueError("--condition goes with --conditions (or alone), not --noise-mag/--ccd")
     if args.noise_mag is not None:

@@ -45,13 +45,14 @@ from shapes.visibility.table import (
 if TYPE_CHECKING:
     from shapes.model import FacetModel
 
-__all__ = ["build_visibility_table", "expected_build_seconds"]
+__all__ = ["build_visibility_table", "describe_build"]
 
 logger = logging.getLogger(__name__)
 
-_BATCH_POINTS = 1 << 22  # (directions × points) of one batch: its bool arrays and rays
-_RAYS_PER_SECOND = 5e6  # one loaded core, Embree, bookkeeping included (for the estimate)
-_REFINED_SHARE = 0.45  # rays cast by a refined build, share of every ray (measured)
+_BATCH_POINTS = 1 << 22  # (directions × points) of one batch of level 0: its rays
+_REFINED_BATCH = 8  # finer levels: that many times more directions a batch (fewer rays)
+_RAYS_PER_SECOND = 4e6  # per thread, Embree and bookkeeping (measured, for the estimate)
+_REFINED_SHARE = 0.33  # rays a refined build casts, share of every ray (asteroids: 0.31)
 
 
 def build_visibility_table(
@@ -123,6 +124,7 @@ def build_visibility_table(
         for level, (nodes, neighbours) in enumerate(levels):
             level_start, level_rays = time.perf_counter(), filler.rays
             rows = max(1, _BATCH_POINTS // max(1, len(sampling)))
+            rows *= 1 if neighbours is None else _REFINED_BATCH
             for first in range(0, len(nodes), rows):
                 part = slice(first, first + rows)
                 filler.fill(nodes[part], None if neighbours is None else neighbours[part])
@@ -145,21 +147,37 @@ def build_visibility_table(
     return table
 
 
-def expected_build_seconds(
+def describe_build(
     model: FacetModel | CompiledFacets,
     *,
     resolution: int = DEFAULT_RESOLUTION,
     samples: int = DEFAULT_SAMPLES,
     spacing: float = DEFAULT_SPACING,
     workers: int | None = None,
-) -> float:
-    """Rough wall time of :func:`build_visibility_table` (refined), s: the sample points
-    times the directions, the measured share of rays a refined build casts, and
-    ``_RAYS_PER_SECOND`` per worker (Embree)."""
+) -> str:
+    """One line: the table :func:`build_visibility_table` (refined) builds and its rough wall
+    time — the sample points times the directions, the share of those rays a refined build
+    casts on smooth natural shapes (≈ 1/3), at ``_RAYS_PER_SECOND`` per thread."""
     compiled = _compiled(model)
     points = len(_caster(compiled, int(samples), float(spacing), "auto").sampling)
-    rays = (6 * resolution**2 + 2) * points * (_REFINED_SHARE if resolution % 2 == 0 else 1.0)
-    return rays / (_RAYS_PER_SECOND * _workers(workers))
+    directions = 6 * resolution**2 + 2
+    share = _REFINED_SHARE if resolution % 2 == 0 else 1.0
+    threads = _workers(workers)
+    seconds = directions * points * share / (_RAYS_PER_SECOND * threads)
+    return (
+        f"visibility table (joint lit and seen) of {len(compiled)} effective facets: "
+        f"{directions} directions × {points} sample points, about {_duration(seconds)} "
+        f"on {threads} thread{'s' if threads > 1 else ''}"
+    )
+
+
+def _duration(seconds: float) -> str:
+    """``12 s``, ``3 min``, ``1.5 h``."""
+    if seconds < 90.0:
+        return f"{max(1.0, seconds):.0f} s"
+    if seconds < 5400.0:
+        return f"{seconds / 60.0:.0f} min"
+    return f"{seconds / 3600.0:.1f} h"
 
 
 def _workers(workers: int | None) -> int:
@@ -167,7 +185,9 @@ def _workers(workers: int | None) -> int:
 
 
 class _LevelFiller:
-    """Fills the rows of a table's bits, node by node, ray-casting what cannot be inferred."""
+    """Fills the rows of a table's bits, node by node, ray-casting what cannot be inferred;
+    the work of a batch of nodes is split into row ranges of about equal rays, one per
+    thread (the compiled kernels and Embree release the GIL)."""
 
     def __init__(
         self,
@@ -179,70 +199,67 @@ class _LevelFiller:
     ) -> None:
         self.table, self.caster, self.position = table, caster, position
         self.pool, self.workers = pool, workers
-        self.point_facet = caster.sampling.facet
-        self.n_facets = table.n_facets
+        facet = caster.sampling.facet
+        self.count = np.bincount(facet, minlength=table.n_facets).astype(np.int64)
+        self.first = np.zeros(table.n_facets, np.int64)
+        starts = np.flatnonzero(np.diff(facet, prepend=-1))  # points are grouped by facet
+        self.first[facet[starts]] = starts
         self.directions = table.grid.directions.astype(np.float32)
         self.rays = 0
 
     def fill(self, nodes: np.ndarray, neighbours: np.ndarray | None) -> None:
         """Set ``bits[nodes]``; ``neighbours (len(nodes), m)``: nodes already filled whose
         agreement on a facet decides it without rays (None: cast every point)."""
+        kernels = _kernels()
+        out = np.zeros((len(nodes), self.table.bits.shape[1]), dtype=np.uint64)
+        needed = np.zeros((len(nodes), self.table.n_facets), dtype=bool)
         if neighbours is None:
-            visible = np.zeros((len(nodes), len(self.point_facet)), dtype=bool)
-            needed = np.ones_like(visible)
+            needed[:] = self.count > 0
         else:
-            every = self._agreeing(neighbours, visible=True)
-            none = self._agreeing(neighbours, visible=False)
-            visible = every[:, self.point_facet]
-            needed = ~(every | none)[:, self.point_facet]
-        count = np.cumsum(needed.sum(axis=1))
-        self.rays += int(count[-1]) if len(count) else 0
-        # row ranges of about equal rays, one per thread
-        cuts = np.searchsorted(count, np.linspace(0, count[-1], self.workers + 1)[1:-1])
-        bounds = np.unique(np.concatenate([[0], cuts, [len(nodes)]]))
+            segments = self.table._segments()
 
-        def work(part: slice) -> None:
-            rays = int(needed[part].sum())
+            def decide(part: slice) -> None:
+                kernels.agreeing_facets(
+                    self.table.bits,
+                    neighbours[part],
+                    segments["segment_start"],
+                    segments["segment_word"],
+                    segments["segment_mask"],
+                    out[part],
+                    needed[part],
+                )
+
+            self._split(decide, np.full(len(nodes), 1.0))
+        per_row = needed @ self.count
+        self.rays += int(per_row.sum())
+
+        def cast(part: slice) -> None:
+            rays = int(per_row[part].sum())
             origins = np.empty((rays, 3), dtype=np.float32)
             directions = np.empty((rays, 3), dtype=np.float32)
-            kernels = _kernels()
-            caster = self.caster
-            kernels.mirrored_rays(
+            args = (needed[part], self.first, self.count)
+            kernels.facet_rays(
                 self.directions[nodes[part]],
-                caster.normals32,
-                caster.scene_origins,
-                needed[part],
+                self.caster.normals32,
+                self.caster.scene_origins,
+                *args,
                 origins,
                 directions,
             )
-            kernels.scatter_rays(
-                needed[part], ~caster.occluder.query(origins, directions), visible[part]
-            )
-            stream = np.zeros((len(visible[part]), 64 * self.table.bits.shape[1]), dtype=bool)
-            stream[:, self.position] = visible[part]
-            packed = np.packbits(stream, axis=1, bitorder="little")
-            self.table.bits[nodes[part]] = packed.view("<u8").astype(np.uint64, copy=False)
+            escapes = ~self.caster.occluder.query(origins, directions)
+            kernels.set_escaping(*args, self.position, escapes, out[part])
 
-        parts = [slice(a, b) for a, b in itertools.pairwise(bounds)]
-        list(self.pool.map(work, parts))
+        self._split(cast, per_row)
+        self.table.bits[nodes] = out
 
-    def _agreeing(self, neighbours: np.ndarray, *, visible: bool) -> np.ndarray:
-        """``(M, K)`` bool: every point of the facet is visible (``visible``) or hidden from
-        every one of a node's ``neighbours``."""
-        segments = self.table._segments()
-        bits = self.table.bits[neighbours.ravel()]
-        flags = np.empty((len(bits), -(-self.n_facets // 64)), dtype=np.uint64)
-        _kernels().full_flags(
-            bits if visible else ~bits,
-            segments["segment_start"],
-            segments["segment_word"],
-            segments["segment_mask"],
-            flags,
-        )
-        flags = np.bitwise_and.reduce(flags.reshape(*neighbours.shape, -1), axis=1)
-        return np.unpackbits(flags.view(np.uint8), axis=1, bitorder="little")[
-            :, : self.n_facets
-        ].astype(bool)
+    def _split(self, work: Any, cost: np.ndarray) -> None:
+        """Run ``work(rows)`` on row ranges of about equal total ``cost``, one per thread."""
+        total = np.cumsum(cost)
+        if not len(total) or total[-1] == 0:
+            return
+        cuts = np.searchsorted(total, np.linspace(0, total[-1], self.workers + 1)[1:-1])
+        bounds = np.unique(np.concatenate([[0], cuts, [len(cost)]]))
+        list(self.pool.map(work, [slice(a, b) for a, b in itertools.pairwise(bounds)]))
 
 
 @contextmanager
