@@ -210,7 +210,8 @@ class _LevelFiller:
     def fill(self, nodes: np.ndarray, neighbours: np.ndarray | None) -> None:
         """Set ``bits[nodes]``; ``neighbours (len(nodes), m)``: nodes already filled whose
         agreement on a facet decides it without rays (None: cast every point)."""
-        kernels = _kernels()
+        from shapes.visibility import build_kernels as kernels  # numba, on first use
+
         out = np.zeros((len(nodes), self.table.bits.shape[1]), dtype=np.uint64)
         needed = np.zeros((len(nodes), self.table.n_facets), dtype=bool)
         if neighbours is None:
