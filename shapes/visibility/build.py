@@ -84,7 +84,8 @@ def build_visibility_table(
         Coarse-to-fine build (module docstring): ray-cast only the facets a shadow boundary
         crosses near each direction of the finer levels. False: every point, every direction.
     workers : int, optional
-        Threads casting rays (default: the CPU count).
+        Threads casting rays (default: ``OMP_NUM_THREADS``, which ``lightcurve --threads``
+        sets, else the CPUs the process may use).
 
     Returns
     -------
@@ -181,7 +182,18 @@ def _duration(seconds: float) -> str:
 
 
 def _workers(workers: int | None) -> int:
-    return max(1, int(workers) if workers is not None else (os.cpu_count() or 1))
+    """``workers``, else ``OMP_NUM_THREADS`` (what ``lightcurve --threads N`` sets), else the
+    CPUs this process may use."""
+    if workers is not None:
+        return max(1, int(workers))
+    try:
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return (
+            len(os.sched_getaffinity(0))
+            if hasattr(os, "sched_getaffinity")
+            else os.cpu_count() or 1
+        )
 
 
 class _LevelFiller:
