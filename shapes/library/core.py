@@ -45,6 +45,7 @@ import json
 import logging
 import os
 import shutil
+import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from importlib import resources
@@ -396,7 +397,11 @@ class ShapeLibrary:
         check_name(name)
         mesh = Path(mesh)
         self._check_free(name, force)
+        started = time.perf_counter()
         model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
+        logger.info(
+            "read %s: %d facets in %.1f s", mesh, len(model.faces), time.perf_counter() - started
+        )
         articulation = _articulation(parts, model, name, mesh)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
         table_options = (
@@ -489,6 +494,12 @@ class ShapeLibrary:
                 mass=None if np.isnan(model.mass) else model.mass,
                 center_of_mass=model.center_of_mass if inertia_source == "given" else None,
                 provenance=provenance,
+            )
+            logger.info(
+                "wrote and re-read the mesh of %s (%s, convex: %s)",
+                name,
+                model.inertia_source,
+                stored.is_convex,
             )
             if not stored.is_convex and table_options is not None:
                 if announce is not None:
