@@ -171,7 +171,7 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
                 str(entry.get("facets", "?")),
                 str(entry.get("unit", "?")),
                 ",".join(entry.get("groups", [])),
-                "table" if entry.get("visibility") else "none (convex)",
+                _self_shadowing(entry),
                 str(provenance.get("source", "")),
             )
         )
@@ -179,6 +179,13 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     for row in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
     return 0
+
+
+def _self_shadowing(entry: dict[str, Any]) -> str:
+    """The ``list`` column: a table, skipped at add (``--shadows none``), or convex."""
+    if entry.get("visibility"):
+        return "table"
+    return "none (skipped: shapes rebuild)" if entry.get("shadows") else "none (convex)"
 
 
 #: Entries smaller than this fraction of the largest printed as 0 (round-off, not data).

@@ -39,6 +39,8 @@ def test_shadows_none_then_table_explains_how_to_build_it(tmp_path, capsys):
     assert "shape 'wing' has no visibility table (added with --shadows none)" in error
     assert f"`lightcurve shapes rebuild wing --library {library}`" in error
     assert not (tmp_path / "s.csv").exists()
+    assert main(["shapes", "list", "--library", str(library)]) == 0
+    assert "none (skipped: shapes rebuild)" in capsys.readouterr().out
     # the table is not built on first use either
     assert main(["shapes", "validate", "--library", str(library)]) == 0
     assert not list(library.glob("*.npz"))
