@@ -3,8 +3,8 @@
 Coarse to fine (``refine=True``, an even grid resolution): the nodes of the half-resolution
 grid (a quarter of the directions) are ray-cast for every sample point; then, level by level
 (:meth:`~shapes.visibility.directions.CubeSphereGrid.refinement_levels`), a facet whose points
-are all visible — or all hidden — from every nearest node of the levels before (two or four
-nodes, 2.4°–3.5° away at the default resolution) takes that value at the new node, and only
+are all visible — or all hidden — from every nearby node of the levels before (six or eight
+nodes, 2.4°–8.4° away at the default resolution) takes that value at the new node, and only
 the other facets (those a shadow boundary crosses near that direction) are ray-cast. A shadow
 that appears between nodes 7° apart and covers none of them is missed; the benchmarks
 measure the resulting error against exact ray casting. ``refine=False`` casts every ray.
@@ -52,7 +52,7 @@ logger = logging.getLogger(__name__)
 _BATCH_POINTS = 1 << 22  # (directions × points) of one batch of level 0: its rays
 _REFINED_BATCH = 8  # finer levels: that many times more directions a batch (fewer rays)
 _RAYS_PER_SECOND = 4e6  # per thread, Embree and bookkeeping (measured, for the estimate)
-_REFINED_SHARE = 0.33  # rays a refined build casts, share of every ray (asteroids: 0.31)
+_REFINED_SHARE = 0.33  # rays a refined build casts, share of every ray (Itokawa: 0.33)
 
 
 def build_visibility_table(

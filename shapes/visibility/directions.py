@@ -78,8 +78,10 @@ class CubeSphereGrid:
 
         For an even ``n`` the nodes with even ``(i, j)`` on their face are the grid of
         resolution ``n / 2`` (level 0, no neighbours); level 1 are the midpoints of its cell
-        edges (two neighbours along the edge, ``π / (2 n)`` rad away); level 2 the cell
-        centres (the four level-1 nodes around them, ``π / (2 n)`` rad away). An odd ``n``
+        edges (the two ends of the edge, ``π / (2 n)`` rad away, and the far corners of the
+        two cells beside it, about ``√5 π / (2 n)``; clipped at a face's border); level 2 the cell
+        centres (the four level-1 nodes around them, ``π / (2 n)`` rad away, and the cell's
+        four corners, ``√2 π / (2 n)``). An odd ``n``
         has one level: every node.
 
         Returns
@@ -92,19 +94,37 @@ class CubeSphereGrid:
         if self.n % 2:
             return [(np.arange(len(self)), None)]
         coarse = np.unique(index[:, ::2, ::2])
-        along_i = (index[:, 1::2, ::2], index[:, :-1:2, ::2], index[:, 2::2, ::2])
-        along_j = (index[:, ::2, 1::2], index[:, ::2, :-1:2], index[:, ::2, 2::2])
-        edge = np.concatenate([along_i[0].ravel(), along_j[0].ravel()])
-        edge_neighbours = np.stack(
-            [np.concatenate([along_i[k].ravel(), along_j[k].ravel()]) for k in (1, 2)], axis=1
-        )
-        edge, first = np.unique(edge, return_index=True)  # face seams hold a node twice
+        face, i, j = np.meshgrid(*(np.arange(k) for k in index.shape), indexing="ij")
+        nodes, neighbours = [], []
+        for odd, other in ((i, j), (j, i)):  # midpoints of edges along i, then along j
+            at = (odd % 2 == 1) & (other % 2 == 0)
+            steps = [(da, db) for da in (-1, 1) for db in (0, -2, 2)]
+            rows = [
+                (odd[at] + da, other[at] + db) if odd is i else (other[at] + db, odd[at] + da)
+                for da, db in steps
+            ]
+            nodes.append(index[at])
+            neighbours.append(
+                np.stack(
+                    [
+                        index[face[at], np.clip(r, 0, self.n), np.clip(c, 0, self.n)]
+                        for r, c in rows
+                    ],
+                    axis=1,
+                )
+            )
+        edge, first = np.unique(np.concatenate(nodes), return_index=True)  # seams: twice
+        edge_neighbours = np.concatenate(neighbours)
         centre = index[:, 1::2, 1::2]
         around = (
             index[:, :-1:2, 1::2],
             index[:, 2::2, 1::2],
             index[:, 1::2, :-1:2],
             index[:, 1::2, 2::2],
+            index[:, :-1:2, :-1:2],
+            index[:, 2::2, :-1:2],
+            index[:, :-1:2, 2::2],
+            index[:, 2::2, 2::2],
         )
         return [
             (coarse, None),

@@ -44,7 +44,8 @@ def test_refinement_levels_hold_each_node_once_after_its_neighbours():
         assert set(neighbours.ravel().tolist()) <= done
         cos = np.einsum("ij,ikj->ik", grid.directions[level_nodes], grid.directions[neighbours])
         angle = np.arccos(np.clip(cos, -1.0, 1.0))
-        assert angle.max() < 1.05 * spacing and angle.min() > 0.6 * spacing
+        assert angle.min() > 0.6 * spacing  # the nearest nodes done, and no farther than
+        assert angle.max() < 2.6 * spacing  # the far corners of the cells beside an edge
         done |= set(level_nodes.tolist())
     assert len(CubeSphereGrid(7).refinement_levels()) == 1  # odd: no coarser grid inside
 
