@@ -27,6 +27,7 @@ from array_api_compat import array_namespace
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
 from shapes.files import atomic_write
+from shapes.visibility.cells import facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -37,7 +38,6 @@ DEFAULT_RESOLUTION = 26
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
-_BLOCK_ROWS = 512  # directions or cells per block of the per-facet flags (memory)
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -280,7 +280,8 @@ class VisibilityTable:
                 full_words,
             )
             corners = self._cell_corners()
-            cell, facet = _partial_cells(full_words.view(np.uint8), self._front_bytes(), corners, k)
+            front = facing_flags(self.grid.directions, self.normals)
+            cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
             count = np.diff(start)[facet]
             entry_word = np.cumsum(count) - count
             row = np.repeat(np.arange(len(facet)), count)
@@ -294,18 +295,6 @@ class VisibilityTable:
                 "cell_words": np.ascontiguousarray(words & seg["segment_mask"][segment, None]),
             }
         return self._cache["cells"]
-
-    def _front_bytes(self) -> np.ndarray:
-        """``(D, ⌈K/64⌉·8)`` uint8: bit ``k`` (little-endian bytes) set where facet ``k``
-        faces grid direction ``d`` — packed block by block (a ``(D, K)`` bool array of a
-        10⁵-facet model would take 0.4 GB)."""
-        d = self.grid.directions
-        out = np.zeros((len(d), 8 * -(-self.n_facets // 64)), dtype=np.uint8)
-        for first in range(0, len(d), _BLOCK_ROWS):
-            front = d[first : first + _BLOCK_ROWS] @ self.normals.T > 0.0
-            packed = np.packbits(front, axis=1, bitorder="little")
-            out[first : first + _BLOCK_ROWS, : packed.shape[1]] = packed
-        return out
 
     def _cell_entries(self, order: np.ndarray) -> dict[str, np.ndarray]:
         """:meth:`_cells` with one entry per output column of ``order`` (and each corner's
@@ -577,28 +566,6 @@ class VisibilityTable:
             raise ShapeError(f"{path}: {exc}") from None
         except (OSError, KeyError, ValueError, IndexError, TypeError) as exc:
             raise ShapeError(f"{path}: not a readable visibility table ({exc})") from None
-
-
-def _partial_cells(
-    full: np.ndarray, front: np.ndarray, corners: np.ndarray, n_facets: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(cell, facet)`` of every facet that faces one of a cell's corners and is not fully
-    visible from all three, in cell then facet order.
-
-    ``full``, ``front``: ``(D, bytes)`` packed flags (little-endian bit order) of "every
-    point visible" and "facing"; cells are taken in blocks, so that the unpacked flags of a
-    10⁵-facet model never hold more than one block.
-    """
-    cells, facets = [], []
-    for first in range(0, len(corners), _BLOCK_ROWS):
-        c = corners[first : first + _BLOCK_ROWS]
-        every = full[c[:, 0]] & full[c[:, 1]] & full[c[:, 2]]
-        faces = front[c[:, 0]] | front[c[:, 1]] | front[c[:, 2]]
-        partial = np.unpackbits(~every & faces, axis=1, bitorder="little")[:, :n_facets]
-        cell, facet = np.nonzero(partial)
-        cells.append(cell + first)
-        facets.append(facet)
-    return np.concatenate(cells), np.concatenate(facets)
 
 
 def _kernels() -> Any:
