@@ -17,7 +17,7 @@ import numpy as np
 
 import brdf
 import shapes
-from lightcurve.commands._args import brdf_parameters
+from lightcurve.commands._args import brdf_parameters, show_progress
 
 if TYPE_CHECKING:
     from shapes.articulation import ArticulatedModel
@@ -81,6 +81,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PARTS.json",
         help="articulated parts: a JSON list of {name, groups, joint} (docs/shapes.md)",
     )
+    p.add_argument(
+        "--shadows",
+        choices=("table", "none"),
+        default="table",
+        help="table: build the visibility table of a non-convex shape now (minutes for 10⁵ "
+        "facets); none: skip it (shadows then ray-cast, or off; `shapes rebuild NAME` builds "
+        "it later)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing shape")
     p = action("remove", "remove a shape")
     p.add_argument("name", help="shape name")
@@ -89,7 +97,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = action(
         "rebuild",
         "rebuild the visibility tables of every non-convex shape (or one), e.g. tables written "
-        "in an older format; keeps each table's resolution and sampling",
+        "in an older format or skipped at add; keeps each table's resolution and sampling",
     )
     p.add_argument("name", nargs="?", help="shape name (default: every non-convex shape)")
     p = action("render", "write a PNG preview coloured by material")
@@ -147,7 +155,7 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
                 str(entry.get("facets", "?")),
                 str(entry.get("unit", "?")),
                 ",".join(entry.get("groups", [])),
-                "table" if entry.get("visibility") else "none (convex)",
+                _self_shadowing(entry),
                 str(provenance.get("source", "")),
             )
         )
@@ -155,6 +163,13 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     for row in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
     return 0
+
+
+def _self_shadowing(entry: dict[str, Any]) -> str:
+    """The ``list`` column: a table, skipped at add (``--shadows none``), or convex."""
+    if entry.get("visibility"):
+        return "table"
+    return "none (skipped: shapes rebuild)" if entry.get("shadows") else "none (convex)"
 
 
 #: Entries smaller than this fraction of the largest printed as 0 (round-off, not data).
@@ -265,6 +280,11 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         brdf.get(material.brdf, **material.params)  # parameter ranges (BRDFParameterError)
     inertia = "auto" if args.inertia is None else _floats(args.inertia, "--inertia", (3, 6))
     provenance = {k: v for k, v in (("source", args.source), ("license", args.license)) if v}
+
+    def announce(line: str) -> None:
+        if not args.quiet:
+            print(f"building the {line} (--shadows none skips it)", file=sys.stderr, flush=True)
+
     model = library.add(
         args.name,
         args.mesh,
@@ -274,14 +294,21 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         mass=args.mass,
         provenance=provenance,
         force=args.force,
-        progress=sys.stderr.isatty(),
+        progress=show_progress(args),
         parts=_read_parts(args.parts) if args.parts else None,
+        visibility_table=args.shadows == "table",
+        announce=announce,
     )
     if not args.quiet:
         print(
             f"added {args.name}: {len(model.faces)} facets, {len(model.compiled())} effective, "
             f"groups {', '.join(model.group_names)}, inertia {model.inertia_source}"
             + (", visibility table built" if model.visibility is not None else "")
+            + (
+                f", no visibility table (`lightcurve shapes rebuild {args.name}` builds it)"
+                if model.visibility is None and not model.is_convex
+                else ""
+            )
             + (", parts " + ", ".join(library.articulation(args.name).names) if args.parts else "")
         )
     return 0
@@ -313,7 +340,7 @@ def _validate(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
 def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     names = [args.name] if args.name else library.names()
     for name in names:
-        model = library.rebuild_visibility(name)
+        model = library.rebuild_visibility(name, progress=show_progress(args))
         table = model.visibility
         if args.quiet:
             continue

@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve import io
     from lightcurve.photometry.conditions import load_conditions
     from lightcurve.photometry.simulate import GaussianNoise, ObservingNoise, simulate
-    from shapes import get_library
+    from shapes import FacetModel, get_library
 
     if args.profile == "torque-free" and (args.q0 is None or args.omega0 is None):
         raise ValueError(
@@ -186,9 +186,11 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--offset-deg applies to stabilised profiles only")
     band = band_of(args)
     geometry = io.read(args.geometry, require_magnitudes=False)
-    shape = get_library(args.library).load(
-        args.shape, visibility=args.shadows != "none", articulated=True
-    )
+    library = get_library(args.library)
+    shape = library.load(args.shape, visibility=args.shadows != "none", articulated=True)
+    rigid = isinstance(shape, FacetModel)
+    if args.shadows == "table" and rigid and shape.visibility is None and not shape.is_convex:
+        raise ValueError(library.missing_table(args.shape))
     magnitude_offset, offset_deg = 0.0, args.offset_deg
     if args.calibration is not None:
         shape, magnitude_offset, offset_deg = _calibrated(args, shape)

@@ -18,9 +18,14 @@ Layout::
         "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
                     "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
         "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
+        "shadows"?: "none",
         "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
         "parts"?: [{"name": str, "groups": [str, ...],
                     "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
+
+``"shadows": "none"`` marks a non-convex shape added without its table (``add`` with
+``visibility_table=False``): it is not built on first use either, until
+:meth:`ShapeLibrary.rebuild_visibility` builds it (which drops the mark).
 
 ``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
 each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
@@ -40,7 +45,8 @@ import json
 import logging
 import os
 import shutil
-from collections.abc import Iterator, Mapping
+import time
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
@@ -67,7 +73,7 @@ from shapes.library.manifest import (
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
-from shapes.visibility.build import build_visibility_table
+from shapes.visibility.build import build_visibility_table, describe_build
 from shapes.visibility.sampling import DEFAULT_SAMPLES, DEFAULT_SPACING
 from shapes.visibility.table import DEFAULT_RESOLUTION, TableFormatError, VisibilityTable
 
@@ -236,12 +242,20 @@ class ShapeLibrary:
                 return self._rebuild(name, model, entry, table_path)
             except ShapeError as exc:
                 raise ShapeError(f"{where}: {exc}") from None
-        if not build_visibility or model.is_convex:
+        if not build_visibility or model.is_convex or entry.get("shadows") == "none":
             return model
         table = build_visibility_table(model)
         if not self.read_only:
             self._store_table(name, entry["sha256"], table)
         return model.with_visibility(table)
+
+    def missing_table(self, name: str) -> str:
+        """One line on a non-convex shape without a visibility table and how to build it."""
+        skipped = " (added with --shadows none)" if self.info(name).get("shadows") else ""
+        return (
+            f"shape {name!r} has no visibility table{skipped}: {self._rebuild_hint(name)} to "
+            "build it, or use --shadows exact (ray casting) or none"
+        )
 
     def _rebuild_hint(self, name: str) -> str:
         """How to rebuild the table of ``name`` (a command line)."""
@@ -250,10 +264,15 @@ class ShapeLibrary:
         return f"run `lightcurve shapes rebuild {name} --library {self.path}`"
 
     def _rebuild(
-        self, name: str, model: FacetModel, entry: Mapping[str, Any], old_table: Path | None
+        self,
+        name: str,
+        model: FacetModel,
+        entry: Mapping[str, Any],
+        old_table: Path | None,
+        progress: bool = False,
     ) -> FacetModel:
         """Build the table of ``model`` with the resolution and sampling of ``old_table``
-        (when readable) and store it."""
+        (when readable) and store it (``progress``: a tqdm bar)."""
         options: dict[str, Any] = {
             "resolution": DEFAULT_RESOLUTION,
             "samples": DEFAULT_SAMPLES,
@@ -267,13 +286,14 @@ class ShapeLibrary:
                             options[key] = type(value)(data[key])
             except (OSError, ValueError):
                 pass  # an unreadable old table: the defaults
-        table = build_visibility_table(model, **options)
+        table = build_visibility_table(model, **options, progress=progress)
         self._store_table(name, entry["sha256"], table)
         return model.with_visibility(table)
 
-    def rebuild_visibility(self, name: str) -> FacetModel:
+    def rebuild_visibility(self, name: str, *, progress: bool = False) -> FacetModel:
         """Rebuild and store the visibility table of a non-convex shape (e.g. one stored in an
-        older table format), keeping its grid resolution and sampling.
+        older table format, or added without one), keeping its grid resolution and sampling.
+        ``progress``: a tqdm bar.
 
         Returns
         -------
@@ -286,7 +306,7 @@ class ShapeLibrary:
         if model.is_convex:
             return model
         old = entry.get("visibility")
-        return self._rebuild(name, model, entry, self.path / old if old else None)
+        return self._rebuild(name, model, entry, self.path / old if old else None, progress)
 
     def validate(self, name: str) -> FacetModel:
         """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
@@ -296,7 +316,7 @@ class ShapeLibrary:
             validate(model)
         except ShapeError as exc:
             raise ShapeError(f"{self.path}: shape {name!r}: {exc}") from None
-        if not model.is_convex and model.visibility is None:
+        if not model.is_convex and model.visibility is None and not self.info(name).get("shadows"):
             raise ShapeError(
                 f"{self.path}: shape {name!r} is not convex but has no visibility table"
             )
@@ -334,6 +354,8 @@ class ShapeLibrary:
         samples: int = DEFAULT_SAMPLES,
         spacing: float = DEFAULT_SPACING,
         progress: bool = False,
+        visibility_table: bool = True,
+        announce: Callable[[str], None] | None = None,
     ) -> FacetModel:
         """Add a shape from a mesh file.
 
@@ -358,6 +380,13 @@ class ShapeLibrary:
         resolution, samples, spacing, progress :
             Visibility-table parameters for non-convex shapes (:func:`build_visibility_table`;
             ``progress``: a tqdm bar).
+        visibility_table : bool
+            Build the visibility table of a non-convex shape. False records the shape
+            without one (``"shadows": "none"``; not built on first use either): renderers
+            then ray-cast its shadows or skip them, and :meth:`rebuild_visibility` builds it.
+        announce : callable, optional
+            Called with one line saying what table is built and how long it should take,
+            before the build starts.
 
         Returns
         -------
@@ -368,15 +397,18 @@ class ShapeLibrary:
         check_name(name)
         mesh = Path(mesh)
         self._check_free(name, force)
+        started = time.perf_counter()
         model = load_mesh(mesh, unit=unit, materials=materials, inertia=inertia, mass=mass)
+        logger.info(
+            "read %s: %d facets in %.1f s", mesh, len(model.faces), time.perf_counter() - started
+        )
         articulation = _articulation(parts, model, name, mesh)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
-        table_options = {
-            "resolution": resolution,
-            "samples": samples,
-            "spacing": spacing,
-            "progress": progress,
-        }
+        table_options = (
+            {"resolution": resolution, "samples": samples, "spacing": spacing, "progress": progress}
+            if visibility_table
+            else None
+        )
         verbatim = mesh if keep_file else None
         return self._commit(
             name,
@@ -386,6 +418,7 @@ class ShapeLibrary:
             verbatim=verbatim,
             table_options=table_options,
             articulation=articulation,
+            announce=announce,
         )
 
     def add_model(
@@ -435,10 +468,12 @@ class ShapeLibrary:
         *,
         force: bool,
         verbatim: Path | None,
-        table_options: dict[str, Any],
+        table_options: dict[str, Any] | None,
         articulation: Articulation | None = None,
+        announce: Callable[[str], None] | None = None,
     ) -> FacetModel:
-        """Write mesh (+ table) under temporary names, then swap them in under the lock."""
+        """Write mesh (+ table) under temporary names, then swap them in under the lock
+        (``table_options`` None: no table for a non-convex shape)."""
         self.path.mkdir(parents=True, exist_ok=True)
         suffix = verbatim.suffix.lower() if verbatim is not None else ".obj"
         final = {"mesh": self.path / f"{name}{suffix}"}
@@ -460,13 +495,24 @@ class ShapeLibrary:
                 center_of_mass=model.center_of_mass if inertia_source == "given" else None,
                 provenance=provenance,
             )
-            if not stored.is_convex:
+            logger.info(
+                "wrote and re-read the mesh of %s (%s, convex: %s)",
+                name,
+                model.inertia_source,
+                stored.is_convex,
+            )
+            if not stored.is_convex and table_options is not None:
+                if announce is not None:
+                    sizes = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+                    announce(describe_build(stored, **sizes))
                 table = build_visibility_table(stored, **table_options)
                 final["visibility"] = self.path / f"{name}.visibility.npz"
                 staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
                 table.save(staged["visibility"])
                 stored = stored.with_visibility(table)
             entry = manifest_entry(name, stored, final, staged, provenance)
+            if table_options is None and not stored.is_convex:
+                entry["shadows"] = "none"
             if articulation is not None:
                 entry["parts"] = articulation.to_list()
             with self._locked() as manifest:
@@ -493,6 +539,7 @@ class ShapeLibrary:
                     return
                 entry["visibility"] = final.name
                 entry["visibility_sha256"] = file_sha256(staged)
+                entry.pop("shadows", None)
                 swap_in(
                     {"visibility": staged},
                     {"visibility": final},

@@ -30,7 +30,11 @@ Modules
 - :mod:`~shapes.visibility.table` — :class:`VisibilityTable`: the bits, the ``.npz`` format,
   the interpolated lookups.
 - :mod:`~shapes.visibility.kernels` — the tables' compiled (numba) bit-mask kernels.
-- :mod:`~shapes.visibility.build` — :func:`build_visibility_table`, the ray casting of a table.
+- :mod:`~shapes.visibility.cells` — packed per-facet flags of the grid (facing, partly
+  shadowed around a cell).
+- :mod:`~shapes.visibility.build` — :func:`build_visibility_table`, the coarse-to-fine ray
+  casting of a table on a pool of threads; :mod:`~shapes.visibility.build_kernels`, its
+  compiled kernels.
 - :mod:`~shapes.visibility.posed` — shadows of articulated shapes, ray-cast against the parts
   in their per-epoch pose.
 

@@ -72,6 +72,66 @@ class CubeSphereGrid:
     def __len__(self) -> int:
         return len(self.directions)
 
+    def refinement_levels(self) -> list[tuple[np.ndarray, np.ndarray | None]]:
+        """The nodes in coarse-to-fine order, each level's with its nearest nodes of the
+        levels before.
+
+        For an even ``n`` the nodes with even ``(i, j)`` on their face are the grid of
+        resolution ``n / 2`` (level 0, no neighbours); level 1 are the midpoints of its cell
+        edges (the two ends of the edge, ``π / (2 n)`` rad away, and the far corners of the
+        two cells beside it, about ``√5 π / (2 n)``; clipped at a face's border); level 2 the cell
+        centres (the four level-1 nodes around them, ``π / (2 n)`` rad away, and the cell's
+        four corners, ``√2 π / (2 n)``). An odd ``n``
+        has one level: every node.
+
+        Returns
+        -------
+        list of (nodes, neighbours)
+            ``nodes (M,)`` rows of :attr:`directions`; ``neighbours (M, m)`` rows of earlier
+            levels, or None for level 0. Every node appears in exactly one level.
+        """
+        index = self.node_index
+        if self.n % 2:
+            return [(np.arange(len(self)), None)]
+        coarse = np.unique(index[:, ::2, ::2])
+        face, i, j = np.meshgrid(*(np.arange(k) for k in index.shape), indexing="ij")
+        nodes, neighbours = [], []
+        for odd, other in ((i, j), (j, i)):  # midpoints of edges along i, then along j
+            at = (odd % 2 == 1) & (other % 2 == 0)
+            steps = [(da, db) for da in (-1, 1) for db in (0, -2, 2)]
+            rows = [
+                (odd[at] + da, other[at] + db) if odd is i else (other[at] + db, odd[at] + da)
+                for da, db in steps
+            ]
+            nodes.append(index[at])
+            neighbours.append(
+                np.stack(
+                    [
+                        index[face[at], np.clip(r, 0, self.n), np.clip(c, 0, self.n)]
+                        for r, c in rows
+                    ],
+                    axis=1,
+                )
+            )
+        edge, first = np.unique(np.concatenate(nodes), return_index=True)  # seams: twice
+        edge_neighbours = np.concatenate(neighbours)
+        centre = index[:, 1::2, 1::2]
+        around = (
+            index[:, :-1:2, 1::2],
+            index[:, 2::2, 1::2],
+            index[:, 1::2, :-1:2],
+            index[:, 1::2, 2::2],
+            index[:, :-1:2, :-1:2],
+            index[:, 2::2, :-1:2],
+            index[:, :-1:2, 2::2],
+            index[:, 2::2, 2::2],
+        )
+        return [
+            (coarse, None),
+            (edge, edge_neighbours[first]),
+            (centre.ravel(), np.stack([a.ravel() for a in around], axis=1)),
+        ]
+
     def locate(self, directions: Any) -> tuple[Any, Any]:
         """Corner nodes and barycentric weights of the grid triangle containing each direction.
 

@@ -27,6 +27,7 @@ from array_api_compat import array_namespace
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
 from shapes.files import atomic_write
+from shapes.visibility.cells import facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -278,12 +279,9 @@ class VisibilityTable:
                 seg["segment_mask"],
                 full_words,
             )
-            full = np.unpackbits(full_words.view(np.uint8), axis=1, bitorder="little")[:, :k]
-            front = self.grid.directions @ self.normals.T > 0.0
             corners = self._cell_corners()
-            partial = (full[corners[:, 0]] & full[corners[:, 1]] & full[corners[:, 2]]) == 0
-            partial &= front[corners[:, 0]] | front[corners[:, 1]] | front[corners[:, 2]]
-            cell, facet = np.nonzero(partial)
+            front = facing_flags(self.grid.directions, self.normals)
+            cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
             count = np.diff(start)[facet]
             entry_word = np.cumsum(count) - count
             row = np.repeat(np.arange(len(facet)), count)
