@@ -97,9 +97,9 @@ def _mode(moments: np.ndarray, w: np.ndarray) -> tuple[str, float, float]:
     """Mode and (|L|², 2E)."""
     l2 = float(np.sum((moments * w) ** 2))
     two_e = float(np.sum(moments * w * w))
-    along = np.max(np.abs(w)) / np.linalg.norm(w)
     if l2 == 0.0:
         raise ValueError("the body does not rotate (ω = 0)")
+    along = np.max(np.abs(w)) / np.linalg.norm(w)
     if along > 1.0 - PRINCIPAL_TOLERANCE:
         return "PA", l2, two_e
     if abs(l2 - two_e * moments[1]) <= PRINCIPAL_TOLERANCE * l2:
@@ -145,7 +145,7 @@ def euler_periods(inertia: Any, omega: Any) -> EulerPeriods:
     # Π(n, k) = R_F(0, 1 − k², 1) + n/3 · R_J(0, 1 − k², 1, 1 − n) (Carlson 1995).
     third = float(elliprf(0.0, 1 - k2, 1.0) + n / 3.0 * elliprj(0.0, 1 - k2, 1.0, 1.0 - n))
     rate = math.sqrt(l2) / reference * (1.0 + (reference - opposite) / opposite * third / quarter)
-    return EulerPeriods(mode, 4.0 * quarter / scale, 2 * math.pi / rate)
+    return EulerPeriods(mode, 4.0 * quarter / scale, float(2 * math.pi / rate))
 
 
 def euler_periods_numeric(
@@ -197,7 +197,7 @@ def euler_periods_numeric(
     phi_dot = math.sqrt(l2) * (ib * wb**2 + ic * wc**2) / (ib**2 * wb**2 + ic**2 * wc**2)
     advance = float(simpson(phi_dot, x=grid))
     period = stop - start
-    return EulerPeriods(mode, period, 2 * math.pi * period / advance)
+    return EulerPeriods(mode, float(period), float(2 * math.pi * period / advance))
 
 
 def _upward_zeros(times: np.ndarray, values: np.ndarray) -> np.ndarray:
