@@ -479,8 +479,13 @@ def tumbling_search(
         for start in starts
         for order in orders
         for pair in _rebases(_minimise(coarse, start, order, step, tolerance=1e-2))
-        if f_min <= pair.min() and pair.max() <= f_max
+        if f_min - step <= pair.min() and pair.max() <= f_max + step
     ]
+    if not options:
+        raise ValueError(
+            f"no pair of trial periods within {low:g}-{high:g} h fits a two-period series over "
+            f"a {span / 3600:.3g}-h span: widen the period range or use a longer light curve"
+        )
     _, _, order, pair = min(options, key=lambda option: option[:2])
     pair = _minimise(full, pair, order, 0.25 * step, tolerance=1e-4)
     h = 0.05 * step

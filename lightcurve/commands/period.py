@@ -171,7 +171,13 @@ def _tumbling(observations: list, args: argparse.Namespace, wanted: bool) -> dic
             "mode": None,
             "combinations": [],
         }
-    result = tumbling_search(observations, args.range)
+    try:
+        result = tumbling_search(observations, args.range)
+    except ValueError as error:
+        if args.tumbling:
+            raise
+        # Unasked (residual structure only): a light curve too short for two periods.
+        return {**_tumbling(observations, args, False), "two_period_note": str(error)}
     _plot_two_periods(result, args.out / "tumbling_periodogram.png")
     summary = result.summary()
     periods = " and ".join(
