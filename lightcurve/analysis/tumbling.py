@@ -36,19 +36,18 @@ The search (:func:`tumbling_search`):
 
 Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
 :func:`euler_reading`). Two generators of the same lattice of combination frequencies are
-equally valid (``(f_φ, f_ψ)`` and ``(f_φ − f_ψ, f_φ)`` fit the same light curve); the BIC
+equally valid (``(f_φ, f_ψ)`` and ``(f_φ ± f_ψ, f_φ)`` fit the same light curve); the BIC
 prefers the pair in which the power sits in the fewest low-order terms, and ``periods_h``
 is that pair. Which is the precession is not determined by the light curve alone
 (Kaasalainen 2001, sec. 3; Pravec et al. 2005, sec. 2). The reading used here: an elongated
-body's brightness is dominated by the second harmonic of its spin about ``L``, the rate of
-φ + ψ, i.e. ``f_s = f_φ − f_ψ`` in a SAM (ψ turns backwards relative to φ there) and
-``f_s = f_φ + f_ψ`` in a LAM; in the simulated tumblers of ``benchmarks.tumbling_periods``
-the BIC's pair is mostly ``(f_s, f_φ)``. So the generator with the stronger second harmonic
-is read as ``f_s``, the other as ``f_φ``, ``f_ψ = |f_s − f_φ|``, and the mode follows from
-the sign of ``f_s − f_φ``. A SAM always has ``P_φ < P_ψ/2`` (checked over random states in
-the tests); a reading that breaks it is ``"undetermined"``. The reading is a heuristic whose
-success rate is measured by the benchmark, not a theorem; ``periods_h`` and
-``combinations`` are the model-free result.
+body's brightness is dominated by the second harmonic of its spin about ``L``, at the rate
+of φ + ψ, i.e. ``f_s = f_φ − f_ψ`` in a SAM (ψ turns backwards relative to φ there) and
+``f_s = f_φ + f_ψ`` in a LAM; in the simulated tumblers the BIC's pair is mostly
+``(f_s, f_ψ)`` in a SAM and ``(f_s, f_φ)`` in a LAM. A SAM always has ``P_φ < P_ψ/2``, a
+LAM mostly ``P_φ < P_ψ`` (both checked over random states in the tests), which splits the
+two readings at ``f_s = 2x`` (:func:`euler_reading`). This is a heuristic whose success
+rate the benchmark measures, not a theorem; ``periods_h`` and ``combinations`` are the
+model-free result.
 """
 
 from __future__ import annotations
@@ -204,10 +203,11 @@ def euler_reading(
     (module docstring).
 
     The generator whose second harmonic ((2, 0) or (0, 2)) is the stronger is read as the
-    body's spin about ``L`` (``f_s = f_φ ∓ f_ψ``), the other as the precession ``f_φ``;
-    then ``f_ψ = |f_s − f_φ|``, and the mode is ``"SAM"`` when ``f_s < f_φ`` (and
-    ``P_φ < P_ψ/2``, which every SAM has), ``"LAM"`` when ``f_s > f_φ``, ``"undetermined"``
-    otherwise. σ(f_ψ) adds the two frequency variances (their correlation ignored).
+    body's spin about ``L``, ``f_s``; the other is ``x``. With ``f_s > 2x``: a SAM with
+    ``f_ψ = x``, ``f_φ = f_s + x`` (``f_s = f_φ − f_ψ``). With ``x < f_s < 2x``: a LAM with
+    ``f_φ = x``, ``f_ψ = f_s − x`` (``f_s = f_φ + f_ψ``). With ``x > f_s``: ``f_φ = x``,
+    ``f_ψ = x − f_s``, a SAM when ``P_φ < P_ψ/2`` (every SAM has it), else undetermined.
+    σ(f) of a sum adds the two frequency variances (their correlation ignored).
 
     Parameters
     ----------
@@ -226,24 +226,19 @@ def euler_reading(
     sigma_f = np.asarray(sigmas_h, float) * f**2
     second = {(c["j"], c["k"]): c["amplitude_mag"] for c in combinations}
     spin = 0 if second.get((2, 0), 0.0) >= second.get((0, 2), 0.0) else 1
-    precession = 1 - spin
-    f_phi, f_psi = f[precession], abs(f[spin] - f[precession])
-    sigma_psi = math.hypot(*sigma_f)
-    if f[spin] > f_phi:
-        mode = "LAM"
-    elif f_psi < 0.5 * f_phi:
-        mode = "SAM"
+    f_s, x = f[spin], f[1 - spin]
+    sigma_s, sigma_x = sigma_f[spin], sigma_f[1 - spin]
+    both = math.hypot(sigma_s, sigma_x)
+    if f_s > 2 * x:
+        mode, (f_phi, s_phi), (f_psi, s_psi) = "SAM", (f_s + x, both), (x, sigma_x)
+    elif f_s > x:
+        mode, (f_phi, s_phi), (f_psi, s_psi) = "LAM", (x, sigma_x), (f_s - x, both)
     else:
-        mode = "undetermined"
+        f_phi, s_phi, f_psi, s_psi = x, sigma_x, x - f_s, both
+        mode = "SAM" if f_psi < 0.5 * f_phi else "undetermined"
     return {
-        "precession_period_h": {
-            "period_h": float(1.0 / f_phi),
-            "sigma_h": float(sigma_f[precession] / f_phi**2),
-        },
-        "rotation_period_h": {
-            "period_h": float(1.0 / f_psi),
-            "sigma_h": float(sigma_psi / f_psi**2),
-        },
+        "precession_period_h": {"period_h": float(1.0 / f_phi), "sigma_h": float(s_phi / f_phi**2)},
+        "rotation_period_h": {"period_h": float(1.0 / f_psi), "sigma_h": float(s_psi / f_psi**2)},
         "mode": mode,
     }
 

@@ -85,16 +85,18 @@ def _terms(strong):
 
 def test_euler_reading_rule():
     """The generator with the stronger second harmonic is the spin f_s = f_φ ∓ f_ψ."""
-    # LAM: f_φ = 1, f_ψ = 0.4 per hour; the BIC's pair (f_s, f_φ) = (1.4, 1).
+    # LAM: f_φ = 1, f_ψ = 0.4 per hour; the pair (f_s, f_φ) = (1.4, 1).
     lam = euler_reading([1 / 1.4, 1.0], [1e-4, 1e-4], _terms((2, 0)))
     assert lam["mode"] == "LAM"
     assert lam["precession_period_h"]["period_h"] == pytest.approx(1.0)
     assert lam["rotation_period_h"]["period_h"] == pytest.approx(2.5)
     assert lam["rotation_period_h"]["sigma_h"] > lam["precession_period_h"]["sigma_h"]
-    # SAM: f_φ = 1, f_ψ = 0.3; pair (f_φ, f_s) = (1, 0.7).
-    sam = euler_reading([1.0, 1 / 0.7], [1e-4, 1e-4], _terms((0, 2)))
-    assert sam["mode"] == "SAM"
-    assert sam["rotation_period_h"]["period_h"] == pytest.approx(1 / 0.3)
+    # SAM: f_φ = 1, f_ψ = 0.3; the pair (f_s, f_ψ) = (0.7, 0.3) or (f_φ, f_s) = (1, 0.7).
+    for periods, strong in (([1 / 0.7, 1 / 0.3], (2, 0)), ([1.0, 1 / 0.7], (0, 2))):
+        sam = euler_reading(periods, [1e-4, 1e-4], _terms(strong))
+        assert sam["mode"] == "SAM"
+        assert sam["precession_period_h"]["period_h"] == pytest.approx(1.0)
+        assert sam["rotation_period_h"]["period_h"] == pytest.approx(1 / 0.3)
     # f_s < f_φ but P_φ > P_ψ/2: no SAM has it.
     assert euler_reading([1.0, 1 / 0.4], [1e-4, 1e-4], _terms((0, 2)))["mode"] == "undetermined"
 
