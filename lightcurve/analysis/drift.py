@@ -163,6 +163,7 @@ def night_periods(
     period_range_h: tuple[float, float] | None = None,
     *,
     tumbling: bool = False,
+    pole: tuple[float, float] | None = None,
 ) -> list[NightPeriod]:
     """The period (or the two periods) of each file.
 
@@ -176,6 +177,10 @@ def night_periods(
     tumbling : bool
         Fit two periods per night (:func:`~lightcurve.analysis.tumbling.tumbling_search`):
         the shorter and the longer each make a series.
+    pole : (λ, β), optional
+        Spin axis (rad, the files' inertial frame) of a principal-axis rotator: sidereal
+        nightly periods (:func:`~lightcurve.analysis.period.period_search`), free of the
+        synodic offset, which drifts with the geometry from night to night.
 
     Returns
     -------
@@ -193,7 +198,7 @@ def night_periods(
             ):
                 out.append(NightPeriod(name, series, mjd, float(p), float(s)))
         else:
-            result = period_search(obs, period_range_h)
+            result = period_search(obs, period_range_h, pole=pole)
             out.append(NightPeriod(name, "period", mjd, result.period_h, result.sigma_h))
     return out
 
@@ -204,6 +209,7 @@ def period_drift(
     *,
     quadratic: bool = False,
     tumbling: bool = False,
+    pole: tuple[float, float] | None = None,
 ) -> tuple[list[NightPeriod], list[DriftResult]]:
     """Per-night periods and the drift of each series (module docstring).
 
@@ -217,6 +223,8 @@ def period_drift(
         Fit the second derivative too.
     tumbling : bool
         Two periods per night, each series fitted.
+    pole : (λ, β), optional
+        Spin axis (rad) for sidereal nightly periods (:func:`night_periods`).
 
     Returns
     -------
@@ -224,7 +232,7 @@ def period_drift(
     drifts : list of DriftResult
         One per series.
     """
-    nights = night_periods(observations, period_range_h, tumbling=tumbling)
+    nights = night_periods(observations, period_range_h, tumbling=tumbling, pole=pole)
     series = dict.fromkeys(n.series for n in nights)
     drifts = [
         fit_drift([n for n in nights if n.series == name], quadratic=quadratic) for name in series

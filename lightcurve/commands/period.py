@@ -196,7 +196,11 @@ def _drift(observations: list, args: argparse.Namespace) -> dict:
     from lightcurve.io.atomic import atomic_write_table
 
     nights, drifts = period_drift(
-        observations, args.range, quadratic=args.quadratic, tumbling=args.tumbling
+        observations,
+        args.range,
+        quadratic=args.quadratic,
+        tumbling=args.tumbling,
+        pole=None if args.pole is None else tuple(np.radians(args.pole)),
     )
     table = pd.DataFrame([vars(n) for n in nights])
     atomic_write_table(table, args.out / "night_periods.csv")
