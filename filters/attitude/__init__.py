@@ -17,6 +17,9 @@ principal_rk4
     Compiled RK4 chains of torque-free motion in principal axes (numba).
 propagation
     Batched RK4, adaptive DOP853 truth propagation, the closed-form axisymmetric motion.
+torque_free_periods
+    Rotation and mean precession periods of non-principal-axis rotation (closed form and
+    integrated), the SAM/LAM mode.
 jacobians
     Analytic Jacobians of the dynamics for EKFs and the discrete transition matrix.
 arrays
@@ -24,12 +27,20 @@ arrays
     the helpers every kernel above is written with, public for kernels outside the core.
 """
 
-from filters.attitude import inertia, jacobians, kinematics, propagation, quaternion
+from filters.attitude import (
+    inertia,
+    jacobians,
+    kinematics,
+    propagation,
+    quaternion,
+    torque_free_periods,
+)
 from filters.attitude.inertia import *  # noqa: F403
 from filters.attitude.jacobians import *  # noqa: F403
 from filters.attitude.kinematics import *  # noqa: F403
 from filters.attitude.propagation import *  # noqa: F403
 from filters.attitude.quaternion import *  # noqa: F403
+from filters.attitude.torque_free_periods import *  # noqa: F403
 
 # The public names are those of the submodules (each lists its own in ``__all__``).
 __all__ = sorted(
@@ -39,5 +50,6 @@ __all__ = sorted(
         *kinematics.__all__,
         *propagation.__all__,
         *quaternion.__all__,
+        *torque_free_periods.__all__,
     ]
 )

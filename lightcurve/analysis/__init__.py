@@ -4,6 +4,9 @@ Modules
 -------
 - :mod:`~lightcurve.analysis.period` — rotation-period search: multi-harmonic Fourier
   periodogram, aliases, sidereal correction.
+- :mod:`~lightcurve.analysis.tumbling` — two-period analysis of tumblers (two-dimensional
+  Fourier series, precession and rotation periods).
+- :mod:`~lightcurve.analysis.drift` — per-night periods and their drift (spin-down).
 - :mod:`~lightcurve.analysis.spin` — principal-axis spin states (DAMIT convention) and
   simulated rotators.
 - :mod:`~lightcurve.analysis.glint` — glints (specular flashes): detection, panel normals,

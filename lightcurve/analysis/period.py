@@ -38,7 +38,9 @@ from lightcurve.io.observations import Observations
 from lightcurve.sky.geometry import phase_angle_bisector
 
 __all__ = [
+    "FourierDesign",
     "PeriodResult",
+    "StackedLightCurves",
     "fourier_chi2",
     "lomb_scargle_period",
     "pab_longitude",
@@ -115,6 +117,47 @@ class PeriodResult:
         return 2 * self.order + 1
 
 
+@dataclass(frozen=True)
+class StackedLightCurves:
+    """The points of one or more observation files, stacked for a period search.
+
+    Attributes
+    ----------
+    mjd : (N,) float
+    times : (N,) float
+        Seconds since the first epoch.
+    magnitudes, sigma : (N,) float
+        ``mag`` and its 1σ error.
+    curve : (N,) int
+        Light-curve index (each file's ``lightcurve_id`` kept apart).
+    sun, observer : (N, 3) float
+        Object → Sun and object → observer (inertial, km).
+    """
+
+    mjd: np.ndarray
+    times: np.ndarray
+    magnitudes: np.ndarray
+    sigma: np.ndarray
+    curve: np.ndarray
+    sun: np.ndarray
+    observer: np.ndarray
+
+    @classmethod
+    def of(cls, observations: Observations | Sequence[Observations]) -> StackedLightCurves:
+        """Stack one file or a sequence of files."""
+        obs_list = [observations] if isinstance(observations, Observations) else list(observations)
+        mjd = np.concatenate([o.mjd for o in obs_list])
+        return cls(
+            mjd=mjd,
+            times=(mjd - mjd.min()) * SECONDS_PER_DAY,
+            magnitudes=np.concatenate([o.magnitudes for o in obs_list]),
+            sigma=np.concatenate([o.magnitude_errors for o in obs_list]),
+            curve=np.concatenate([o.lightcurve_ids + 100_000 * i for i, o in enumerate(obs_list)]),
+            sun=np.concatenate([o.sun_vectors for o in obs_list]),
+            observer=np.concatenate([o.observer_vectors for o in obs_list]),
+        )
+
+
 def pab_longitude(sun: np.ndarray, observer: np.ndarray, pole: tuple[float, float]) -> np.ndarray:
     """Longitude Λ (rad) of the phase-angle bisector about a pole, measured in the pole's
     equatorial frame ``R_y(90° − β) R_z(λ)`` (:mod:`lightcurve.analysis.spin`).
@@ -170,11 +213,15 @@ def synodic_to_sidereal(
     return 1.0 / (1.0 / period_h + rate / (2 * math.pi))
 
 
-class _FourierDesign:
-    """Weighted least squares of the K-harmonic model with per-curve offsets (shared setup).
+class FourierDesign:
+    """Weighted least squares of a Fourier model with per-curve offsets (shared setup).
 
-    The offsets are eliminated by weighted demeaning within each curve, so every trial
-    frequency needs only a ``2K × 2K`` system.
+    The model is a sum of terms ``a cos(n·ψ) + b sin(n·ψ)`` over integer combination vectors
+    ``n`` of one or more phases ``ψ_d = 2π f_d t`` (the first one minus ``phase_offset``):
+    one phase with ``n = 1..K`` is the K-harmonic series of :func:`period_search`, two
+    phases with the combinations ``j f1 + k f2`` are the two-period series of
+    :mod:`lightcurve.analysis.tumbling`. The offsets are eliminated by weighted demeaning
+    within each curve, so every trial needs only a ``2P × 2P`` system for P terms.
     """
 
     def __init__(self, times, values, sigma, curve, phase_offset=None) -> None:
@@ -197,19 +244,52 @@ class _FourierDesign:
 
     def solve(self, frequencies: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients ``[a_1..a_K, b_1..b_K]`` (n, 2K) and χ² (n,) at each frequency."""
+        harmonics = np.arange(1, order + 1)[:, None]
+        return self.solve_combinations(np.asarray(frequencies, float)[:, None], harmonics)
+
+    def solve_combinations(
+        self, frequencies: np.ndarray, combinations: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coefficients ``[a_1..a_P, b_1..b_P]`` (n, 2P) and χ² (n,) of the terms
+        ``a_p cos(n_p·ψ) + b_p sin(n_p·ψ)``.
+
+        Parameters
+        ----------
+        frequencies : (n, D) float
+            Trial frequency tuples (Hz), one row per trial.
+        combinations : (P, D) int
+            Integer combination vectors ``n_p`` of the D phases (none all zero, no two of
+            opposite sign).
+
+        Returns
+        -------
+        coefficients : (n, 2P) float
+        chi2 : (n,) float
+        """
         f = np.asarray(frequencies, float)
-        psi = 2 * np.pi * f[:, None] * self.t[None, :] - self.offset  # (n, N)
-        # e^{ikψ} by repeated multiplication: one complex exponential per point.
-        first = np.exp(1j * psi)
-        powers = [first]
-        for _ in range(order - 1):
-            powers.append(powers[-1] * first)
-        z = np.stack(powers, axis=1)  # (n, K, N)
-        x = self._demean(np.concatenate([z.real, z.imag], axis=1))
+        combinations = np.asarray(combinations, int)
+        # e^{i n·ψ} as products of integer powers of e^{iψ_d}: one complex exponential per
+        # phase and point, the powers by repeated multiplication (negative ones conjugate).
+        z = np.ones((len(f), len(combinations), len(self.t)), complex)
+        for d in range(f.shape[1]):
+            psi = 2 * np.pi * f[:, d, None] * self.t[None, :] - (self.offset if d == 0 else 0.0)
+            first = np.exp(1j * psi)
+            largest = int(np.max(np.abs(combinations[:, d])))
+            powers = [np.ones_like(first), first]
+            for _ in range(largest - 1):
+                powers.append(powers[-1] * first)
+            for p, n in enumerate(combinations[:, d]):
+                if n:
+                    z[:, p] *= powers[n] if n > 0 else np.conj(powers[-n])
+        x = np.concatenate([z.real, z.imag], axis=1)
         xw = x * self.w
-        gram = xw @ x.transpose(0, 2, 1)
+        # The demeaned design's Gram matrix without forming it: X W Xᵀ minus, per curve,
+        # (X W 1_c)(X W 1_c)ᵀ / W_c; the data are demeaned already, so X W y needs nothing.
+        sums = xw @ self.one_hot
+        gram = xw @ x.transpose(0, 2, 1) - (sums / self.weight_sum) @ sums.transpose(0, 2, 1)
         rhs = xw @ self.y
-        gram += 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(2 * order)
+        size = 2 * len(combinations)
+        gram += 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(size)
         solution = np.linalg.solve(gram, rhs[..., None])[..., 0]
         return solution, self.base - np.sum(solution * rhs, axis=1)
 
@@ -250,7 +330,7 @@ def fourier_chi2(
     -------
     (n,) float
     """
-    design = _FourierDesign(times, values, sigma, curve, phase_offset)
+    design = FourierDesign(times, values, sigma, curve, phase_offset)
     frequencies = np.atleast_1d(np.asarray(frequencies, float))
     return np.concatenate(
         [
@@ -329,14 +409,9 @@ def period_search(
         Bad range, too few points, or a frequency grid above 400 000 trials (narrow the
         range: a long time span needs a fine grid).
     """
-    obs_list = [observations] if isinstance(observations, Observations) else list(observations)
-    mjd = np.concatenate([o.mjd for o in obs_list])
-    mags = np.concatenate([o.magnitudes for o in obs_list])
-    sigma = np.concatenate([o.magnitude_errors for o in obs_list])
-    curve = np.concatenate([o.lightcurve_ids + 100_000 * i for i, o in enumerate(obs_list)])
-    sun = np.concatenate([o.sun_vectors for o in obs_list])
-    observer = np.concatenate([o.observer_vectors for o in obs_list])
-    times = (mjd - mjd.min()) * SECONDS_PER_DAY
+    data = StackedLightCurves.of(observations)
+    times, mags, sigma, curve = data.times, data.magnitudes, data.sigma, data.curve
+    sun, observer = data.sun, data.observer
     span = float(times.max() - times.min())
     if len(times) < 2 * max(orders) + 3 or span <= 0:
         raise ValueError(f"too few points ({len(times)}) for a period search")
@@ -363,7 +438,7 @@ def period_search(
     frequencies = np.linspace(f_min, f_max, count)
     offset = None if pole is None else pab_longitude(sun, observer, pole)
 
-    design = _FourierDesign(times, mags, sigma, curve, offset)
+    design = FourierDesign(times, mags, sigma, curve, offset)
 
     def chi2(freqs: np.ndarray, order: int) -> np.ndarray:
         freqs = np.atleast_1d(freqs)

@@ -1,0 +1,542 @@
+"""Two-period analysis of tumbling (non-principal-axis) rotators.
+
+A torque-free tumbler's brightness is a function of its precession angle φ and rotation
+angle ψ about the angular momentum (:mod:`filters.attitude.torque_free_periods`), so its light
+curve is quasi-periodic in two frequencies. It is fitted with the two-dimensional Fourier
+series (Kaasalainen 2001, A&A 376, 302, eq. 9; Pravec et al. 2005, Icarus 173, 108,
+eq. 1) ::
+
+    m(t) = m_c + Σ_{(j,k)} [C_jk cos(2π(j f1 + k f2) t) + S_jk sin(2π(j f1 + k f2) t)]
+
+over ``0 ≤ j ≤ m``, ``−m ≤ k ≤ m``, ``|j| + |k| ≤ m``, ``(j, k) ≠ (0, 0)`` and one of
+``±(j, k)`` (:func:`two_period_combinations`), with one zero point ``m_c`` per light curve.
+At fixed (f1, f2) the fit is linear (:class:`~lightcurve.analysis.period.FourierDesign`,
+batched over trial pairs); the order m is chosen by the BIC ``χ² + p ln N``, ``p`` counting
+the coefficients, the zero points and the two frequencies.
+
+The search (:func:`tumbling_search`):
+
+1. the single-period search (:func:`~lightcurve.analysis.period.period_search`) gives the
+   dominant frequency f0 and the one-period BIC;
+2. coarse scan: f1 over f0, f0/2, 2 f0 and the next deepest one-period minima (and their
+   halves), f2 over the whole grid of step ``1/(oversample · T)`` within
+   ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
+   ``max_coarse_points`` points drawn at random (a fixed seed: irregular sampling has no
+   aliases of the regular cadence, which a strided subset would fold into the band);
+3. refinement: the best coarse pairs are taken to their local minima (Nelder–Mead) on the
+   coarse points; each, with its unimodular re-bases ``(f1 ± f2, f2)``, ``(f1, f2 ± f1)``
+   and halves (the same lattice of combinations written with other generators), is judged
+   at every order by the BIC on all points; the winner is taken to its minimum on all
+   points, where the Hessian ``H`` of χ² (central differences) gives the covariance
+   ``2 χ²_ν H⁻¹`` of (f1, f2);
+4. the verdict: **tumbling** when the two-period fit beats the one-period one by
+   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are not
+   commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
+   ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one).
+
+Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
+:func:`euler_reading`). Two generators of the same lattice of combination frequencies are
+equally valid (``(f_φ, f_ψ)`` and ``(f_φ ± f_ψ, f_φ)`` fit the same light curve); the BIC
+prefers the pair in which the power sits in the fewest low-order terms, and ``periods_h``
+is that pair. Which is the precession is not determined by the light curve alone
+(Kaasalainen 2001, sec. 3; Pravec et al. 2005, sec. 2). The reading used here: an elongated
+body's brightness is dominated by the second harmonic of its spin about ``L``, at the rate
+of φ + ψ, i.e. ``f_s = f_φ − f_ψ`` in a SAM (ψ turns backwards relative to φ there) and
+``f_s = f_φ + f_ψ`` in a LAM; in the simulated tumblers the BIC's pair is mostly
+``(f_s, f_ψ)`` in a SAM and ``(f_s, f_φ)`` in a LAM. A SAM always has ``P_φ < P_ψ/2``, a
+LAM mostly ``P_φ < P_ψ`` (both checked over random states in the tests), which splits the
+two readings at ``f_s = 2x`` (:func:`euler_reading`). This is a heuristic whose success
+rate the benchmark measures, not a theorem; ``periods_h`` and ``combinations`` are the
+model-free result.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+
+from lightcurve.analysis.period import (
+    FourierDesign,
+    PeriodResult,
+    StackedLightCurves,
+    period_search,
+)
+from lightcurve.io.observations import Observations
+
+__all__ = [
+    "COMMENSURATE_RESOLUTION",
+    "SIGNIFICANT_DELTA_BIC",
+    "TumblingResult",
+    "euler_reading",
+    "tumbling_search",
+    "two_period_combinations",
+]
+
+#: ΔBIC (one-period minus two-period) above which the second frequency is significant
+#: ("very strong" evidence, Kass & Raftery 1995, J. Am. Stat. Assoc. 90, 773).
+SIGNIFICANT_DELTA_BIC = 10.0
+#: Two frequencies with ``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` (p, q ≤
+#: ``COMMENSURATE_MAX``) are harmonics of one period, not two periods (T: the time span).
+COMMENSURATE_RESOLUTION = 0.25
+#: The two frequencies must differ by at least this many cycles over the time span T
+#: (closer ones beat into a slow modulation the arc cannot resolve as a period).
+MIN_SEPARATION_CYCLES = 1.5
+#: Harmonic orders of the one-period rival judged on all points (besides ``single_orders``).
+SINGLE_HARMONICS = (8, 10, 12, 16)
+#: Largest numerator and denominator of the commensurability test.
+COMMENSURATE_MAX = 6
+#: The second frequency is searched within this factor of the dominant one.
+RATIO_SPAN = 8.0
+#: Trial pairs per vectorised block.
+_CHUNK = 32
+#: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency.
+_EXTRA_FIRST = 3
+#: Coarse pairs refined.
+_REFINED = 3
+
+
+def two_period_combinations(order: int) -> np.ndarray:
+    """The combination vectors (j, k) of the two-period series of order m.
+
+    Parameters
+    ----------
+    order : int
+        m ≥ 1.
+
+    Returns
+    -------
+    (P, 2) int
+        ``0 ≤ j ≤ m``, ``|j| + |k| ≤ m``, not both zero, ``k > 0`` when ``j = 0``; ordered
+        by ``|j| + |k|`` then j then k. ``P = m(m + 1)`` (m = 2: 6, 3: 12, 4: 20).
+    """
+    if order < 1:
+        raise ValueError(f"the two-period order must be ≥ 1, got {order}")
+    pairs = [
+        (j, k)
+        for j in range(order + 1)
+        for k in range(-order, order + 1)
+        if j + abs(k) <= order and (j > 0 or k > 0)
+    ]
+    return np.array(sorted(pairs, key=lambda p: (p[0] + abs(p[1]), p[0], p[1])), dtype=int)
+
+
+@dataclass
+class TumblingResult:
+    """Outcome of :func:`tumbling_search`.
+
+    Attributes
+    ----------
+    periods_h, sigmas_h : (2,) numpy.ndarray
+        The two fundamental periods (h, shorter first) and their 1σ.
+    order : int
+        Order m of the best two-period series.
+    chi2 : float
+        Its χ².
+    n_points : int
+    delta_bic : float
+        BIC of the best one-period fit minus that of the two-period fit (> 0: two periods
+        are preferred).
+    tumbling : bool
+        The verdict (module docstring).
+    commensurate : bool
+        Whether the two frequencies are harmonics of one (``|q f2 − p f1|`` small).
+    combinations : list of dict
+        ``j``, ``k`` (of the shorter and the longer period), ``period_h`` of
+        ``j f1 + k f2`` and ``amplitude_mag`` ``√(C² + S²)``, largest first.
+    single : PeriodResult
+        The one-period search.
+    scan_periods_h : (n,) numpy.ndarray
+        Trial second periods of the coarse scan.
+    scan_first_h : (r,) numpy.ndarray
+        First periods of the coarse scan.
+    scan_chi2 : (r, n) numpy.ndarray
+        Order-2 χ² of the coarse scan (on the coarse points).
+    """
+
+    periods_h: np.ndarray
+    sigmas_h: np.ndarray
+    order: int
+    chi2: float
+    n_points: int
+    delta_bic: float
+    tumbling: bool
+    commensurate: bool
+    combinations: list[dict]
+    single: PeriodResult
+    scan_periods_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    scan_first_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    scan_chi2: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def reading(self) -> dict:
+        """:func:`euler_reading` of the two periods."""
+        return euler_reading(self.periods_h, self.sigmas_h, self.combinations)
+
+    def summary(self) -> dict:
+        """JSON-ready: the keys documented in ``docs/formats.md``."""
+        reading = self.reading
+        return {
+            "tumbling": self.tumbling,
+            "delta_bic": self.delta_bic,
+            "periods_h": [
+                {"period_h": float(p), "sigma_h": float(s)}
+                for p, s in zip(self.periods_h, self.sigmas_h, strict=True)
+            ],
+            "precession_period_h": reading["precession_period_h"],
+            "rotation_period_h": reading["rotation_period_h"],
+            "mode": reading["mode"],
+            "combinations": self.combinations,
+            "two_period_order": self.order,
+            "two_period_chi2": self.chi2,
+            "commensurate": self.commensurate,
+        }
+
+
+def euler_reading(
+    periods_h: Sequence[float], sigmas_h: Sequence[float], combinations: Sequence[dict]
+) -> dict:
+    """Precession and rotation periods and the mode implied by two fundamental periods
+    (module docstring).
+
+    The generator whose second harmonic ((2, 0) or (0, 2)) is the stronger is read as the
+    body's spin about ``L``, ``f_s``; the other is ``x``. With ``f_s > 2x``: a SAM with
+    ``f_ψ = x``, ``f_φ = f_s + x`` (``f_s = f_φ − f_ψ``). With ``x < f_s < 2x``: a LAM with
+    ``f_φ = x``, ``f_ψ = f_s − x`` (``f_s = f_φ + f_ψ``). With ``x > f_s``: ``f_φ = x``,
+    ``f_ψ = x − f_s``, a SAM when ``P_φ < P_ψ/2`` (every SAM has it), else undetermined.
+    σ(f) of a sum adds the two frequency variances (their correlation ignored).
+
+    Parameters
+    ----------
+    periods_h, sigmas_h : (2,) float
+        The two periods (h) and their 1σ, in the order of the combinations' (j, k).
+    combinations : sequence of dict
+        ``j``, ``k`` and ``amplitude_mag`` of the series' terms.
+
+    Returns
+    -------
+    dict
+        ``precession_period_h``, ``rotation_period_h`` (each ``{"period_h", "sigma_h"}``)
+        and ``mode``.
+    """
+    f = 1.0 / np.asarray(periods_h, float)
+    sigma_f = np.asarray(sigmas_h, float) * f**2
+    second = {(c["j"], c["k"]): c["amplitude_mag"] for c in combinations}
+    spin = 0 if second.get((2, 0), 0.0) >= second.get((0, 2), 0.0) else 1
+    f_s, x = f[spin], f[1 - spin]
+    sigma_s, sigma_x = sigma_f[spin], sigma_f[1 - spin]
+    both = math.hypot(sigma_s, sigma_x)
+    if f_s > 2 * x:
+        mode, (f_phi, s_phi), (f_psi, s_psi) = "SAM", (f_s + x, both), (x, sigma_x)
+    elif f_s > x:
+        mode, (f_phi, s_phi), (f_psi, s_psi) = "LAM", (x, sigma_x), (f_s - x, both)
+    else:
+        f_phi, s_phi, f_psi, s_psi = x, sigma_x, x - f_s, both
+        mode = "SAM" if f_psi < 0.5 * f_phi else "undetermined"
+    return {
+        "precession_period_h": {"period_h": float(1.0 / f_phi), "sigma_h": float(s_phi / f_phi**2)},
+        "rotation_period_h": {"period_h": float(1.0 / f_psi), "sigma_h": float(s_psi / f_psi**2)},
+        "mode": mode,
+    }
+
+
+class _TwoPeriodFit:
+    """χ² of the two-period series at trial pairs, on all points or the subset ``keep``."""
+
+    def __init__(self, data: StackedLightCurves, keep: np.ndarray | slice = slice(None)) -> None:
+        self.design = FourierDesign(
+            data.times[keep], data.magnitudes[keep], data.sigma[keep], data.curve[keep]
+        )
+        self.n = len(self.design.t)
+
+    def chi2(self, pairs: np.ndarray, order: int) -> np.ndarray:
+        pairs = np.atleast_2d(pairs)
+        combos = two_period_combinations(order)
+        return np.concatenate(
+            [
+                self.design.solve_combinations(pairs[i : i + _CHUNK], combos)[1]
+                for i in range(0, len(pairs), _CHUNK)
+            ]
+        )
+
+    def coefficients(self, pair: np.ndarray, order: int) -> np.ndarray:
+        return self.design.solve_combinations(
+            np.asarray(pair, float)[None], two_period_combinations(order)
+        )[0][0]
+
+    def bic(self, chi2: float, order: int) -> float:
+        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_curves + 2
+        return chi2 + n_parameters * math.log(self.n)
+
+
+def _hessian(values: np.ndarray, h: float) -> np.ndarray:
+    """Hessian of χ² from its values on a 3 × 3 stencil of spacing ``h`` (central
+    differences)."""
+    cross = (values[2, 2] - values[2, 0] - values[0, 2] + values[0, 0]) / 4.0
+    return np.array(
+        [
+            [values[2, 1] - 2 * values[1, 1] + values[0, 1], cross],
+            [cross, values[1, 2] - 2 * values[1, 1] + values[1, 0]],
+        ]
+    ) / (h * h)
+
+
+def _minimise(
+    fit: _TwoPeriodFit, pair: np.ndarray, order: int, step: float, *, tolerance: float
+) -> np.ndarray:
+    """Local minimum of χ²(f1, f2) near ``pair`` (Nelder–Mead in units of ``step``, to
+    ``tolerance`` of them)."""
+    origin = np.asarray(pair, float)
+    result = minimize(
+        lambda x: float(fit.chi2(origin + step * x, order)[0]),
+        np.zeros(2),
+        method="Nelder-Mead",
+        options={
+            "initial_simplex": [[0, 0], [0.5, 0], [0, 0.5]],
+            "xatol": tolerance,
+            "fatol": 1e-3,
+        },
+    )
+    return origin + step * result.x
+
+
+def _thinned(
+    observations: Observations | Sequence[Observations], fraction: float
+) -> list[Observations]:
+    """A random ``fraction`` of the rows of each file (:func:`_subset`), in time order."""
+    obs_list = [observations] if isinstance(observations, Observations) else list(observations)
+    return [
+        Observations(
+            o.table.iloc[_subset(len(o), fraction)].reset_index(drop=True), o.meta, o.source
+        )
+        for o in obs_list
+    ]
+
+
+def _subset(n: int, fraction: float) -> np.ndarray:
+    """Sorted indices of ``ceil(fraction · n)`` of ``n`` rows, drawn with the seed ``n``
+    (the same rows on every call)."""
+    size = math.ceil(fraction * n)
+    return np.sort(np.random.default_rng(n).choice(n, size, replace=False))
+
+
+def _single_bic(design: FourierDesign, f0: float, order: int, step: float) -> float:
+    """BIC of the K-harmonic one-period series at its χ² minimum within ``f0 ± step``."""
+    result = minimize_scalar(
+        lambda f: float(design.solve(np.array([f]), order)[1][0]),
+        bounds=(f0 - step, f0 + step),
+        method="bounded",
+        options={"xatol": 1e-4 * step},
+    )
+    n_parameters = 2 * order + design.n_curves + 1
+    return float(result.fun) + n_parameters * math.log(len(design.t))
+
+
+def _rebases(pair: np.ndarray) -> list[np.ndarray]:
+    """The pair and its unimodular re-bases and halves (module docstring)."""
+    f1, f2 = pair
+    options = [
+        (f1, f2),
+        (abs(f1 - f2), f2),
+        (f1, abs(f2 - f1)),
+        (f1 + f2, f2),
+        (f1, f1 + f2),
+        (f1 / 2, f2),
+        (f1, f2 / 2),
+    ]
+    return [np.array(o) for o in options if min(o) > 0 and abs(o[0] - o[1]) > 1e-3 * max(o)]
+
+
+def _commensurate(pair: np.ndarray, span_s: float) -> bool:
+    f1, f2 = pair
+    tolerance = COMMENSURATE_RESOLUTION / span_s
+    return any(
+        abs(q * f2 - p * f1) < tolerance
+        for p in range(1, COMMENSURATE_MAX + 1)
+        for q in range(1, COMMENSURATE_MAX + 1)
+    )
+
+
+def _admissible(pair: np.ndarray, span_s: float) -> bool:
+    """Two frequencies that can be two periods: apart by ``MIN_SEPARATION_CYCLES / T`` and
+    not commensurate."""
+    return abs(pair[0] - pair[1]) * span_s >= MIN_SEPARATION_CYCLES and not _commensurate(
+        pair, span_s
+    )
+
+
+def tumbling_search(
+    observations: Observations | Sequence[Observations],
+    period_range_h: tuple[float, float] | None = None,
+    *,
+    orders: Sequence[int] = (2, 3, 4, 5, 6),
+    single_orders: Sequence[int] = (2, 3, 4, 5, 6),
+    oversample: float = 3.0,
+    max_coarse_points: int = 2000,
+    progress: Callable[[int, int], None] | None = None,
+) -> TumblingResult:
+    """Two-period (tumbling) analysis of one or more observation files (module docstring).
+
+    Parameters
+    ----------
+    observations : Observations or sequence of them
+        Magnitudes with ``mag_err``; each light curve has its own zero point.
+    period_range_h : (float, float), optional
+        Trial periods (h) of both searches; default from four sampling intervals (≥ 1 s) to
+        half the time span (two cycles).
+    orders : sequence of int
+        Two-period orders m tried (BIC chooses).
+    single_orders : sequence of int
+        Harmonic orders of the one-period search.
+    oversample : float
+        Coarse-scan frequency step ``1/(oversample · T)``.
+    max_coarse_points : int
+        Points of the coarse scan (a seeded random subset); the refinement uses all.
+    progress : callable, optional
+        ``progress(rows_done, rows_total)`` over the coarse scan's rows.
+
+    Returns
+    -------
+    TumblingResult
+
+    Raises
+    ------
+    ValueError
+        Too few points, a bad range, or an empty second-period grid.
+    """
+    data = StackedLightCurves.of(observations)
+    span = float(data.times.max() - data.times.min())
+    n = len(data.times)
+    if n < 2 * len(two_period_combinations(max(orders))) + 5 or span <= 0:
+        raise ValueError(f"too few points ({n}) for a two-period search of order {max(orders)}")
+    if period_range_h is None:
+        cadence = float(np.median(np.diff(np.sort(data.times))))
+        period_range_h = (max(4 * cadence, 1.0) / 3600.0, span / 7200.0)
+    fraction = min(1.0, max_coarse_points / n)
+    single = period_search(
+        _thinned(observations, fraction),
+        period_range_h,
+        orders=single_orders,
+        oversample=oversample,
+    )
+    low, high = sorted(float(v) for v in period_range_h)
+    f_min, f_max = 1.0 / (high * 3600.0), 1.0 / (low * 3600.0)
+    f0 = 1.0 / (single.period_h * 3600.0)
+    step = 1.0 / (oversample * span)
+    lo, hi = max(f_min, f0 / RATIO_SPAN), min(f_max, f0 * RATIO_SPAN)
+    second = np.arange(lo, hi + 0.5 * step, step)
+    if len(second) < 3:
+        raise ValueError(
+            f"the second-period grid over {1 / hi / 3600:.3g}-{1 / lo / 3600:.3g} h is empty "
+            "at this time span: widen the period range or use a longer light curve"
+        )
+    peaks = [1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak"]
+    first = [f0, f0 / 2, 2 * f0]
+    for f in peaks[:_EXTRA_FIRST]:
+        first += [f, f / 2]
+    first = np.array([f for f in first if f_min <= f <= f_max])
+    coarse = _TwoPeriodFit(data, _subset(n, fraction))
+    scan = np.empty((len(first), len(second)))
+    allowed = np.zeros(scan.shape, bool)
+    for row, f1 in enumerate(first):
+        pairs = np.column_stack([np.full(len(second), f1), second])
+        scan[row] = coarse.chi2(pairs, min(orders))
+        # A second frequency on (a harmonic of) the first adds nothing: keep it out.
+        allowed[row] = [_admissible(p, span) for p in pairs]
+        if progress is not None:
+            progress(row + 1, len(first))
+    # Starts among the admissible pairs (all pairs when none is: a one-period light curve).
+    ranked = np.where(allowed, scan, np.inf) if allowed.any() else scan
+    starts: list[np.ndarray] = []
+    for flat in np.argsort(ranked, axis=None):
+        row, col = np.unravel_index(int(flat), scan.shape)
+        pair = np.array([first[row], second[col]])
+        if np.isfinite(ranked[row, col]) and all(
+            np.max(np.abs(pair - s)) > 2 * step for s in starts
+        ):
+            starts.append(pair)
+        if len(starts) >= _REFINED:
+            break
+    # Local minima on the coarse points; every re-base of each (the same lattice, so the
+    # same minimum) and order judged by BIC on all points; the winner refined there.
+    full = _TwoPeriodFit(data)
+    # Admissible options first (when there are any), then by BIC.
+    options = [
+        (
+            not _admissible(pair, span),
+            full.bic(float(full.chi2(pair, order)[0]), order),
+            order,
+            pair,
+        )
+        for start in starts
+        for order in orders
+        for pair in _rebases(_minimise(coarse, start, order, step, tolerance=1e-2))
+        if f_min - step <= pair.min() and pair.max() <= f_max + step
+    ]
+    if not options:
+        raise ValueError(
+            f"no pair of trial periods within {low:g}-{high:g} h fits a two-period series over "
+            f"a {span / 3600:.3g}-h span: widen the period range or use a longer light curve"
+        )
+    _, _, order, pair = min(options, key=lambda option: option[:2])
+    pair = _minimise(full, pair, order, 0.25 * step, tolerance=1e-4)
+    h = 0.05 * step
+    axes = [pair[d] + h * np.arange(-1, 2) for d in range(2)]
+    stencil = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    local = full.chi2(stencil, order).reshape(3, 3)
+    hessian = _hessian(local, h)
+    chi2 = float(local[1, 1])
+    best_bic = full.bic(chi2, order)
+    # The one-period rival gets as many harmonics as the two-period lattice reaches.
+    single_bic = min(
+        _single_bic(full.design, f, order, step)
+        for f in (f0, f0 / 2)
+        if f >= f_min
+        for order in sorted({*single_orders, *SINGLE_HARMONICS})
+    )
+    delta_bic = float(single_bic - best_bic)
+    swap = bool(pair[0] < pair[1])
+    pair = np.sort(pair)[::-1]  # higher frequency (shorter period) first
+    reduced = max(chi2 / max(n - 2 * len(two_period_combinations(order)) - 3, 1), 1.0)
+    try:
+        covariance = 2.0 * reduced * np.linalg.inv(hessian)
+        sigma_f = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    except np.linalg.LinAlgError:
+        sigma_f = np.full(2, math.inf)
+    if swap:
+        sigma_f = sigma_f[::-1]
+    periods_h = 1.0 / pair / 3600.0
+    sigmas_h = sigma_f / pair**2 / 3600.0
+    commensurate = _commensurate(pair, span)
+    coefficients = full.coefficients(pair, order)
+    combos = two_period_combinations(order)
+    amplitude = np.hypot(coefficients[: len(combos)], coefficients[len(combos) :])
+    combinations = [
+        {
+            "j": int(combos[i, 0]),
+            "k": int(combos[i, 1]),
+            "period_h": float(1.0 / abs(combos[i] @ pair) / 3600.0)
+            if combos[i] @ pair != 0
+            else None,
+            "amplitude_mag": float(amplitude[i]),
+        }
+        for i in np.argsort(-amplitude)[:10]
+    ]
+    return TumblingResult(
+        periods_h=periods_h,
+        sigmas_h=sigmas_h,
+        order=order,
+        chi2=chi2,
+        n_points=n,
+        delta_bic=delta_bic,
+        tumbling=bool(delta_bic > SIGNIFICANT_DELTA_BIC and _admissible(pair, span)),
+        commensurate=commensurate,
+        combinations=combinations,
+        single=single,
+        scan_periods_h=1.0 / second / 3600.0,
+        scan_first_h=1.0 / first / 3600.0,
+        scan_chi2=np.where(allowed, scan, np.inf),
+    )
