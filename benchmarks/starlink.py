@@ -70,8 +70,9 @@ def plot(table, path: Path) -> None:
     plt.close(fig)
 
 
-def residual_report(materials: tuple[str, str], earthshine: bool = False) -> tuple[dict, object]:
-    """Residual statistics of the prediction with the given chassis and array presets."""
+def residual_report(materials: tuple[str, str], earthshine: str = "off") -> tuple[dict, object]:
+    """Residual statistics of the prediction with the given chassis and array presets,
+    with the Earth's light (``"on"``) or without (``"off"``)."""
     start = time.perf_counter()
     table = predict_pomenis(materials=materials, earthshine=earthshine)
     runtime = time.perf_counter() - start
@@ -89,7 +90,7 @@ def residual_report(materials: tuple[str, str], earthshine: bool = False) -> tup
         ),
         "runtime_s": runtime,
     }
-    if earthshine:
+    if earthshine == "on":
         share = table.earthshine_fraction[finite].to_numpy()
         report["earthshine_fraction"] = {
             "median": float(np.median(share)),
@@ -106,7 +107,7 @@ def residual_report(materials: tuple[str, str], earthshine: bool = False) -> tup
 def main() -> None:
     two_lobe, table = residual_report(MATERIALS)
     one_lobe, _ = residual_report(ONE_LOBE_MATERIALS)
-    with_earthshine, _ = residual_report(MATERIALS, earthshine=True)
+    with_earthshine, _ = residual_report(MATERIALS, earthshine="on")
     plot(table, FIGURE)
     print(
         json.dumps(

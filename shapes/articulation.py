@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -388,6 +388,33 @@ class ArticulatedModel:
     @property
     def inertia(self) -> np.ndarray:
         return self.model.inertia
+
+    @property
+    def materials(self) -> dict[str, Any]:
+        """Material of every mesh group (those of ``model``)."""
+        return self.model.materials
+
+    def replace(self, **changes: Any) -> ArticulatedModel:
+        """A copy whose rigid model has ``changes`` (:meth:`FacetModel.replace
+        <shapes.model.FacetModel.replace>`, e.g. ``materials``), with the same parts."""
+        return ArticulatedModel(self.model.replace(**changes), self.articulation)
+
+    def with_joint_offsets(self, offsets_deg: Mapping[str, float]) -> ArticulatedModel:
+        """A copy whose named parts' joints have the offsets ``offsets_deg`` (part name →
+        degrees, replacing the stored ones)."""
+        unknown = set(offsets_deg) - set(self.articulation.names)
+        if unknown:
+            raise ShapeError(
+                f"{self.name}: no part(s) {', '.join(sorted(unknown))} "
+                f"(parts: {', '.join(self.articulation.names)})"
+            )
+        parts = tuple(
+            replace(p, joint=replace(p.joint, offset_deg=float(offsets_deg[p.name])))
+            if p.name in offsets_deg
+            else p
+            for p in self.articulation.parts
+        )
+        return ArticulatedModel(self.model, Articulation(parts))
 
     def facet_part(self) -> np.ndarray:
         """(F,) int: the moving part (index in :attr:`Articulation.moving`) of every facet,

@@ -5,7 +5,10 @@ attitude follows a stabilised --profile (inertial at --q0, nadir with or without
 --yaw-steering, or sun-pointing; nadir needs the obj_* columns of `lightcurve geometry` or
 `import`). --fit chooses what is fitted: scale (a magnitude offset, the albedo–area
 product), material (the BRDF parameters of every material, or those named by --parameters
-GROUP.NAME,…), offsets (a fixed roll, pitch, yaw of the body from its profile). The fit is
+GROUP.NAME,…), articulation (the joint offset of every moving part of an articulated shape,
+e.g. how far a Sun-tracking array points from the Sun), offsets (a fixed roll, pitch, yaw of
+the body from its profile). Below 27 970 km the model includes the Earth's reflected light
+when the files carry the obj_* columns (--earthshine auto; off drops it). The fit is
 robust (soft-L1 loss) with a prior about the library's values, so that a parameter the data
 do not constrain stays there and is reported as unconstrained. --folds K cross-validates by
 night (the nights of the files' sites, shuffled with --seed).
@@ -28,13 +31,14 @@ from lightcurve.commands._args import (
     add_output_folder,
     unit_quaternion,
 )
+from lightcurve.commands._source import literal
 
 NAME = "calibrate"
 HELP = "fit a shape's scale, materials and pointing offsets to observations with a profile"
 ORDER = 25
 
 #: What ``--fit`` may name.
-FIT_ITEMS = ("scale", "material", "offsets")
+FIT_ITEMS = ("scale", "material", "articulation", "offsets")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,6 +87,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="self-shadowing of the shape",
     )
+    parser.add_argument(
+        "--earthshine",
+        choices=literal("lightcurve.photometry.earthshine", "EARTHSHINE_MODES"),
+        default="auto",
+        help="the Earth's reflected light in the model: auto below 27 970 km when the files "
+        "have the obj_* columns, on (needs them), off",
+    )
     parser.add_argument("--library", help="shape library folder (default: the user's)")
     add_output_folder(parser)
 
@@ -91,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve.io.atomic import atomic_write_json, json_ready
     from lightcurve.photometry.calibration import calibrate, cross_validate
     from shapes import get_library
+    from shapes.articulation import ArticulatedModel
 
     fit = _fit_items(args.fit)
     if "material" not in fit and args.parameters:
@@ -99,8 +111,14 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--q0 applies to --profile inertial only")
     if args.yaw_steering and args.profile != "nadir":
         raise ValueError("--yaw-steering applies to --profile nadir only")
-    shape = get_library(args.library).load(args.shape, visibility=args.shadows != "none")
-    observations, q, nights, note = _load(args)
+    shape = get_library(args.library).load(
+        args.shape, visibility=args.shadows != "none", articulated=True
+    )
+    articulated = isinstance(shape, ArticulatedModel)
+    moving = [p.name for p in shape.articulation.moving] if articulated else []
+    if "articulation" in fit and not moving:
+        raise ValueError(f"--fit articulation: {shape.name} has no moving parts")
+    observations, q, nights, note = _load(args, shape)
     if "material" not in fit:
         parameters: list[str] = []
     elif args.parameters:
@@ -111,8 +129,10 @@ def run(args: argparse.Namespace) -> int:
         "parameters": parameters,
         "offset": "scale" in fit,
         "attitude_offsets": "offsets" in fit,
+        "joint_offsets": moving if "articulation" in fit else [],
         "loss_scale": args.loss_scale,
         "shadows": args.shadows,
+        "earthshine": args.earthshine,
     }
     summary: dict[str, Any] = {
         "files": [str(p) for p in args.files],
@@ -121,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
         "yaw_steering": bool(args.yaw_steering),
         "fit": sorted(fit),
         "n_observations": len(observations),
+        "earthshine": None,
         "nights": len(np.unique(nights)),
         "notes": [note] if note else [],
     }
@@ -138,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         calibration = calibrate(shape, q, observations, **options)
     names = list(calibration.parameters)
+    summary["earthshine"] = calibration.earthshine
     summary.update(
         train_rms_mag=calibration.train_rms_mag,
         parameters=calibration.parameters,
@@ -181,13 +203,16 @@ def _fit_items(text: str) -> set[str]:
     return items
 
 
-def _load(args: argparse.Namespace) -> tuple[Any, np.ndarray, np.ndarray, str]:
-    """The files' observations as one set (magnitudes of a declared band taken back to V),
-    the profile's attitudes, each observation's night and a note on how nights were dated."""
+def _load(args: argparse.Namespace, shape: Any) -> tuple[Any, np.ndarray, np.ndarray, str]:
+    """The files' observations as one set (magnitudes of a declared band taken back to V;
+    the object's positions when every file has them; the columns of ``shape``'s scheduled
+    joints), the profile's attitudes, each observation's night and a note on how nights
+    were dated."""
     import pandas as pd
 
     from lightcurve import io
     from lightcurve.io.observations import (
+        OBJECT_POSITION_COLUMNS,
         OBSERVER_COLUMNS,
         SUN_COLUMNS,
         Observations,
@@ -197,16 +222,27 @@ def _load(args: argparse.Namespace) -> tuple[Any, np.ndarray, np.ndarray, str]:
     from lightcurve.photometry.calibration import night_index
     from lightcurve.photometry.profiles import profile_states
     from lightcurve.sky.sites import site_from_label
+    from shapes.articulation import ArticulatedModel
 
     frames, attitudes, nights = [], [], []
     note = ""
-    for path in args.files:
-        observations = io.read(path)
+    parts = shape.articulation.parts if isinstance(shape, ArticulatedModel) else ()
+    scheduled = [p.joint.column for p in parts if p.joint.column is not None]
+    readings = [io.read(path) for path in args.files]
+    with_positions = all(c in o.table for o in readings for c in OBJECT_POSITION_COLUMNS)
+    positions = list(OBJECT_POSITION_COLUMNS) if with_positions else []
+    for path, observations in zip(args.files, readings, strict=True):
+        missing = [c for c in scheduled if c not in observations.table]
+        if missing:
+            raise ValueError(
+                f"{path}: no column {', '.join(missing)}, the angle of a scheduled joint "
+                f"of {shape.name}"
+            )
         q = profile_states(
             observations, args.profile, reference=args.q0, yaw_steering=args.yaw_steering
         )[:, :4]
         columns = ["mjd", "mag", "mag_err", *SUN_COLUMNS, *OBSERVER_COLUMNS]
-        frame = observations.table[columns].copy()
+        frame = observations.table[columns + positions + scheduled].copy()
         frame["mag"] = frame["mag"] - header_offset(observations.meta)
         frames.append(frame)
         attitudes.append(q)

@@ -14,7 +14,8 @@ mag and mag_err filled and the truth columns q1 q2 q3 q4 (inertial→body) and w
 (rad/s) added. --band (with --magnitude-system) gives the magnitudes in another band than
 V, from the Sun's magnitude in it, and records it in the header. Epochs when the object is
 dark, or undetected under --ccd or --conditions, are dropped and counted in the file's
-header.
+header. Below 27 970 km (a file with the obj_* columns) the Earth's reflected light is
+added (--earthshine auto; off drops it) with its share in an earthshine_fraction column.
 
 Noise: --noise-mag (Gaussian magnitudes), --ccd (photon noise with a sky and read noise), or
 the observing conditions of a telescope and site (--conditions FILE.toml or a name in
@@ -88,15 +89,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--earthshine",
-        action="store_true",
-        help="add the light of a Lambertian Earth (albedo 0.29) and an earthshine_fraction "
-        "column; needs the obj_* columns",
+        choices=literal("lightcurve.photometry.earthshine", "EARTHSHINE_MODES"),
+        default="auto",
+        help="the light of a Lambertian Earth (albedo 0.29) and an earthshine_fraction column: "
+        "auto adds it when the file has the obj_* columns and the object is below 27 970 km "
+        "(where it can reach 1%% of the Sun's light); on needs the obj_* columns",
     )
     parser.add_argument(
         "--calibration",
         metavar="FILE",
-        help="calibration.json of `lightcurve calibrate`: its materials, magnitude offset and "
-        "attitude offsets replace the library's",
+        help="calibration.json of `lightcurve calibrate`: its materials, magnitude offset, "
+        "attitude and joint offsets replace the library's (and its earthshine choice, under "
+        "--earthshine auto)",
     )
     add_band_options(
         parser,
@@ -191,9 +195,9 @@ def run(args: argparse.Namespace) -> int:
     rigid = isinstance(shape, FacetModel)
     if args.shadows == "table" and rigid and shape.visibility is None and not shape.is_convex:
         raise ValueError(library.missing_table(args.shape))
-    magnitude_offset, offset_deg = 0.0, args.offset_deg
+    magnitude_offset, offset_deg, earthshine = 0.0, args.offset_deg, args.earthshine
     if args.calibration is not None:
-        shape, magnitude_offset, offset_deg = _calibrated(args, shape)
+        shape, magnitude_offset, offset_deg, earthshine = _calibrated(args, shape)
     if args.condition and (args.noise_mag is not None or args.ccd is not None):
         raise ValueError("--condition goes with --conditions (or alone), not --noise-mag/--ccd")
     if args.noise_mag is not None:
@@ -218,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         yaw_steering=args.yaw_steering,
         band=band,
         magnitude_offset=magnitude_offset,
-        earthshine=args.earthshine,
+        earthshine=earthshine,
     )
     io.write(result, args.out)
     notes = [
@@ -241,21 +245,23 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _calibrated(args: argparse.Namespace, shape):
-    """The shape with the materials of ``--calibration``, its magnitude offset and the
-    profile's offsets (the calibration's, or ``--offset-deg``, not both)."""
+    """The shape with the materials and joint offsets of ``--calibration``, its magnitude
+    offset, the profile's offsets (the calibration's, or ``--offset-deg``, not both) and the
+    earthshine mode (``--earthshine auto`` follows the calibration's model)."""
     import json
     from pathlib import Path
 
-    from shapes import FacetModel, Material
+    from shapes import Material
+    from shapes.articulation import ArticulatedModel
 
-    if not isinstance(shape, FacetModel):
-        raise ValueError(f"--calibration: {shape.name} is articulated, not covered yet")
     try:
         calibration = json.loads(Path(args.calibration).read_text(encoding="utf-8"))
         materials = calibration["materials"]
         magnitude_offset = float(calibration["magnitude_offset"])
         offset_deg = np.asarray(calibration["offset_deg"], dtype=float)
-    except (OSError, ValueError, KeyError, TypeError) as error:
+        joint_offsets = {k: float(v) for k, v in calibration.get("joint_offsets_deg", {}).items()}
+        earthshine = bool(calibration.get("earthshine", False))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
         raise ValueError(
             f"--calibration {args.calibration}: not a calibration file ({error})"
         ) from None
@@ -274,5 +280,10 @@ def _calibrated(args: argparse.Namespace, shape):
         for group, entry in materials.items()
     }
     shape = shape.replace(materials={**shape.materials, **calibrated})
+    if joint_offsets:
+        if not isinstance(shape, ArticulatedModel):
+            raise ValueError(f"--calibration: joint offsets, but {shape.name} has no parts")
+        shape = shape.with_joint_offsets(joint_offsets)
     offsets = args.offset_deg if args.offset_deg is not None else offset_deg
-    return shape, magnitude_offset, offsets if np.any(offsets) else args.offset_deg
+    mode = args.earthshine if args.earthshine != "auto" else ("on" if earthshine else "off")
+    return shape, magnitude_offset, offsets if np.any(offsets) else args.offset_deg, mode

@@ -29,13 +29,14 @@ import pandas as pd
 from brdf.materials import load_presets
 from filters.attitude import quaternion_from_matrix
 from lightcurve.io.observations import (
+    OBJECT_POSITION_COLUMNS,
     OBSERVER_COLUMNS,
     SUN_COLUMNS,
     Observations,
     datetime_to_mjd,
     validate_table,
 )
-from lightcurve.photometry.earthshine import earthshine_flux
+from lightcurve.photometry.earthshine import earthshine_applies, earthshine_flux
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.sky.ephemeris import Site, site_position
 from shapes import FacetModel, Material, primitives
@@ -167,7 +168,8 @@ def pomenis_geometry(
     Returns
     -------
     observations : Observations
-        ``mjd``, ``mag`` (measured), ``mag_err`` (0.1, nominal), Sun and observer vectors.
+        ``mjd``, ``mag`` (measured), ``mag_err`` (0.1, nominal), Sun and observer vectors
+        and the satellite's geocentric position (``obj_*``, km).
     q : (n, 4) numpy.ndarray
         Model attitudes.
     """
@@ -180,6 +182,8 @@ def pomenis_geometry(
     geometry = from_horizontal(site, table["mjd"].to_numpy(), elevation, azimuth, distance)
     vectors = geometry.table()[["mjd", *SUN_COLUMNS, *OBSERVER_COLUMNS]]
     frame = vectors.assign(mag=table["mag"].to_numpy(), mag_err=0.1)
+    for k, column in enumerate(OBJECT_POSITION_COLUMNS):  # for the Earth's light
+        frame[column] = geometry.object_gcrs[:, k]
     meta = {
         "object": "Starlink v1.5 (Pomenis)",
         "frame": "GCRS",
@@ -198,7 +202,7 @@ def predict_observations(
     site: Site = MOUNT_LEMMON,
     materials: tuple[str, str] = MATERIALS,
     *,
-    earthshine: bool = False,
+    earthshine: str = "auto",
 ) -> np.ndarray:
     """Predicted magnitudes of a Starlink v1.5 in any observation file from ``site``.
 
@@ -213,8 +217,9 @@ def predict_observations(
     site : Site
     materials : (str, str)
         Presets of the chassis and the solar array (`starlink_model`).
-    earthshine : bool
-        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`).
+    earthshine : {"auto", "on", "off"}
+        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`; by
+        default below :data:`~lightcurve.photometry.earthshine.EARTHSHINE_ALTITUDE_KM`).
 
     Returns
     -------
@@ -223,7 +228,8 @@ def predict_observations(
     """
     position = _satellite_position(observations, site)
     q = starlink_attitude(position, position + observations.sun_vectors / _KM)
-    sun, earth = _fluxes(q, observations, materials, position if earthshine else None)
+    lit_by_earth = earthshine_applies(earthshine, position * _KM)
+    sun, earth = _fluxes(q, observations, materials, position if lit_by_earth else None)
     return flux_to_magnitude(sun + earth)
 
 
@@ -256,7 +262,7 @@ def predict_pomenis(
     table: pd.DataFrame | None = None,
     materials: tuple[str, str] = MATERIALS,
     *,
-    earthshine: bool = False,
+    earthshine: str = "auto",
 ) -> pd.DataFrame:
     """Predicted vs measured magnitude of the Pomenis observations.
 
@@ -266,21 +272,23 @@ def predict_pomenis(
         Observations as returned by :func:`read_pomenis` (default: all of them).
     materials : (str, str)
         Presets of the chassis and the solar array (`starlink_model`).
-    earthshine : bool
-        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`).
+    earthshine : {"auto", "on", "off"}
+        Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`; by
+        default below :data:`~lightcurve.photometry.earthshine.EARTHSHINE_ALTITUDE_KM`).
 
     Returns
     -------
     pandas.DataFrame
         ``mjd``, ``measured``, ``predicted``, ``residual`` (measured − predicted),
         ``phase_angle_deg``, ``altitude_deg``, ``height_km``, ``earthshine_fraction``
-        (the Earth's share of the predicted flux; 0 without ``earthshine``).
+        (the Earth's share of the predicted flux; 0 without it).
     """
     from lightcurve.sky.geometry import phase_angle
 
     table = read_pomenis() if table is None else table
     observations, q = pomenis_geometry(table)
-    position = _satellite_position(observations, MOUNT_LEMMON) if earthshine else None
+    lit_by_earth = earthshine_applies(earthshine, observations.object_positions)
+    position = observations.object_positions / _KM if lit_by_earth else None
     sun, earth = _fluxes(q, observations, materials, position)
     predicted = flux_to_magnitude(sun + earth)
     measured = observations.magnitudes

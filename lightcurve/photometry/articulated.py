@@ -43,7 +43,7 @@ from shapes.articulation import ArticulatedModel, axis_rotation
 from shapes.visibility import DEFAULT_SAMPLES, build_visibility_table
 from shapes.visibility.posed import PosedShadows
 
-__all__ = ["ARTICULATED_SHADOW_MODES", "ArticulatedRenderer"]
+__all__ = ["ARTICULATED_SHADOW_MODES", "ArticulatedRenderer", "scheduled_columns"]
 
 ARTICULATED_SHADOW_MODES = ("auto", "none", "table", "exact")
 
@@ -114,23 +114,35 @@ class ArticulatedRenderer:
         return self.shape.articulation.joint_angles(sun_body, columns)
 
     def flux(
-        self, q: Any, sun: Any, observer: Any, columns: Mapping[str, Any] | None = None
+        self,
+        q: Any,
+        sun: Any,
+        observer: Any,
+        columns: Mapping[str, Any] | None = None,
+        *,
+        joint_sun: Any | None = None,
     ) -> np.ndarray:
         """Flux ratio ``F_obs / F_sun``, shape of the broadcast leading axes.
 
         Parameters are those of :meth:`Renderer.flux <lightcurve.photometry.render.Renderer.flux>`
-        (numpy), plus ``columns`` for ``scheduled`` joints.
+        (numpy), plus ``columns`` for ``scheduled`` joints and ``joint_sun``, the object → Sun
+        vectors that drive ``sun_tracking`` joints when the light is another source's (the
+        Earth's, :mod:`lightcurve.photometry.earthshine`; default ``sun``).
         """
         q, sun, observer = (np.asarray(v, float) for v in (q, sun, observer))
-        shape = np.broadcast_shapes(q.shape[:-1], sun.shape[:-1], observer.shape[:-1])
-        q, sun, observer = (_rows(v, shape) for v in (q, sun, observer))
+        pose_sun = sun if joint_sun is None else np.asarray(joint_sun, float)
+        shape = np.broadcast_shapes(
+            q.shape[:-1], sun.shape[:-1], observer.shape[:-1], pose_sun.shape[:-1]
+        )
+        q, sun, observer, pose_sun = (_rows(v, shape) for v in (q, sun, observer, pose_sun))
         if columns is not None:
             columns = {
                 k: np.broadcast_to(np.asarray(v, float), shape).ravel() for k, v in columns.items()
             }
         moving = self._moving
         sun_body = _to_body(q, sun)
-        angles = [p.joint.angles(sun_body, columns, f"part {p.name!r}") for p in moving]  # deg
+        pose_body = sun_body if joint_sun is None else _to_body(q, pose_sun)
+        angles = [p.joint.angles(pose_body, columns, f"part {p.name!r}") for p in moving]  # deg
         attitudes = [q] * self._has_body + [
             _joint_attitude(p.joint.axis, a, q) for p, a in zip(moving, angles, strict=True)
         ]
@@ -165,6 +177,16 @@ class ArticulatedRenderer:
     ) -> np.ndarray:
         """Apparent magnitude (``inf`` when dark); parameters of :meth:`flux`."""
         return flux_to_magnitude(self.flux(q, sun, observer, columns))
+
+
+def scheduled_columns(shape: ArticulatedModel, table: Any) -> dict[str, np.ndarray]:
+    """The observation-table columns that ``shape``'s ``scheduled`` joints read (degrees),
+    those present in ``table`` (a missing one is named by the joint when it is rendered)."""
+    return {
+        p.joint.column: table[p.joint.column].to_numpy(float)
+        for p in shape.articulation.parts
+        if p.joint.column is not None and p.joint.column in table
+    }
 
 
 _JIT = {"error_model": "numpy", "nogil": True, "cache": True}

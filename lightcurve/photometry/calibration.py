@@ -40,15 +40,23 @@ from scipy.optimize import least_squares
 import brdf
 from filters.attitude import quaternion_multiply
 from lightcurve.io.observations import Observations
+from lightcurve.photometry.articulated import ArticulatedRenderer, scheduled_columns
+from lightcurve.photometry.earthshine import (
+    earthshine_applies,
+    known_positions,
+    sun_and_earth_flux,
+)
 from lightcurve.photometry.profiles import offset_quaternion
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from shapes import FacetModel, Material
+from shapes.articulation import ArticulatedModel
 
 __all__ = [
     "ATTITUDE_OFFSETS",
     "Calibration",
     "calibrate",
     "cross_validate",
+    "model_magnitude",
     "night_index",
 ]
 
@@ -79,6 +87,13 @@ class Calibration:
         The renderer's shadow mode of the fit.
     offset_deg : (3,) numpy.ndarray
         Fitted attitude offsets ``[roll, pitch, yaw]`` (deg; zeros when not fitted).
+    joint_offsets_deg : dict
+        Part name → fitted joint offset (deg) of an articulated shape's parts (empty when
+        not fitted).
+    earthshine : bool
+        Whether the fit's model includes the Earth's light
+        (:mod:`lightcurve.photometry.earthshine`); predictions then need the ``obj_*``
+        positions.
     """
 
     magnitude_offset: float
@@ -89,30 +104,104 @@ class Calibration:
     materials: dict[str, Material] = field(repr=False)
     shadows: str = "auto"
     offset_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    joint_offsets_deg: dict[str, float] = field(default_factory=dict)
+    earthshine: bool = False
 
-    def apply(self, model: FacetModel) -> FacetModel:
-        """``model`` with the calibrated materials (the offset is applied to magnitudes by
-        :meth:`magnitude`)."""
-        return model.replace(materials={**model.materials, **self.materials})
+    def apply(self, model: Shape) -> Shape:
+        """``model`` with the calibrated materials and joint offsets (the magnitude offset
+        is applied to magnitudes by :meth:`magnitude`)."""
+        model = model.replace(materials={**model.materials, **self.materials})
+        if self.joint_offsets_deg:
+            model = _as_articulated(model).with_joint_offsets(self.joint_offsets_deg)
+        return model
 
-    def magnitude(self, model: FacetModel, q: Any, sun: Any, observer: Any) -> np.ndarray:
-        """Calibrated magnitudes of ``model`` at attitudes ``q`` (inertial → body) and the
-        object → Sun and object → observer vectors (m, inertial)."""
-        renderer = Renderer(self.apply(model), shadows=self.shadows)
+    def magnitude(self, model: Shape, q: Any, observations: Observations) -> np.ndarray:
+        """Calibrated magnitudes of ``model`` at attitudes ``q`` (inertial → body, one per
+        row of ``observations``, whose Sun and observer vectors, and with earthshine the
+        ``obj_*`` positions, give the geometry)."""
         turned = _turned(np.asarray(q, dtype=float), self.offset_deg)
-        return np.asarray(renderer.magnitude(turned, sun, observer)) + self.magnitude_offset
+        earthshine = "on" if self.earthshine else "off"
+        magnitude = model_magnitude(
+            self.apply(model), turned, observations, shadows=self.shadows, earthshine=earthshine
+        )
+        return magnitude + self.magnitude_offset
 
     def to_json(self) -> dict[str, Any]:
         """What ``simulate --calibration`` applies: the magnitude offset, the attitude
-        offsets and each calibrated material (``brdf``, ``params``)."""
+        and joint offsets, each calibrated material (``brdf``, ``params``) and whether the
+        Earth's light was modelled."""
         return {
             "magnitude_offset": self.magnitude_offset,
             "offset_deg": [float(v) for v in self.offset_deg],
+            "joint_offsets_deg": {k: float(v) for k, v in self.joint_offsets_deg.items()},
+            "earthshine": self.earthshine,
             "materials": {
                 group: {"brdf": m.brdf, "params": dict(m.params), "name": m.name}
                 for group, m in self.materials.items()
             },
         }
+
+
+#: A shape the calibration fits: rigid, or with articulated parts.
+Shape = FacetModel | ArticulatedModel
+
+
+def _as_articulated(model: Shape) -> ArticulatedModel:
+    if not isinstance(model, ArticulatedModel):
+        raise ValueError(f"calibration: {model.name} has no articulated parts")
+    return model
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """The arrays a prediction needs, read once from an observation table: object → Sun and
+    object → observer vectors (m), the object's positions (m) when the Earth's light is
+    modelled, and the columns of scheduled joints."""
+
+    sun: np.ndarray
+    observer: np.ndarray
+    position: np.ndarray | None
+    columns: dict[str, np.ndarray]
+
+    @classmethod
+    def of(cls, model: Shape, observations: Observations, earthshine: bool) -> _Geometry:
+        articulated = isinstance(model, ArticulatedModel)
+        return cls(
+            observations.sun_vectors,
+            observations.observer_vectors,
+            observations.object_positions if earthshine else None,
+            scheduled_columns(model, observations.table) if articulated else {},
+        )
+
+
+def model_magnitude(
+    model: Shape,
+    q: Any,
+    observations: Observations,
+    *,
+    shadows: str = "auto",
+    earthshine: str = "auto",
+) -> np.ndarray:
+    """Magnitudes of ``model`` (rigid or articulated) at attitudes ``q`` (inertial → body)
+    and the geometry of ``observations``, lit by the Sun and, as ``earthshine`` says
+    (:func:`~lightcurve.photometry.earthshine.earthshine_applies`), by the Earth: the
+    uncalibrated prediction a calibration starts from."""
+    with_earth = earthshine_applies(earthshine, known_positions(observations))
+    geometry = _Geometry.of(model, observations, with_earth)
+    return flux_to_magnitude(_model_flux(model, np.asarray(q, dtype=float), geometry, shadows))
+
+
+def _model_flux(model: Shape, q: np.ndarray, geometry: _Geometry, shadows: str) -> np.ndarray:
+    """Flux ratio of ``model`` lit by the Sun (and the Earth) at ``geometry``."""
+    if isinstance(model, ArticulatedModel):
+        renderer: Any = ArticulatedRenderer(model, shadows=shadows)
+        columns: dict[str, np.ndarray] | None = geometry.columns
+    else:
+        renderer, columns = Renderer(model, shadows=shadows), None
+    sunlit, earthlit = sun_and_earth_flux(
+        renderer, q, geometry.sun, geometry.observer, geometry.position, columns=columns
+    )
+    return sunlit + earthlit
 
 
 @dataclass(frozen=True)
@@ -135,25 +224,28 @@ class _Free:
 
 
 def calibrate(
-    model: FacetModel,
+    model: Shape,
     q: np.ndarray,
     observations: Observations,
     *,
     parameters: Sequence[str] = (),
     offset: bool = True,
     attitude_offsets: bool = False,
+    joint_offsets: Sequence[str] = (),
     prior_dex: float = 0.3,
     prior_fraction: float = 0.25,
     offset_sigma_deg: float = 5.0,
+    joint_sigma_deg: float = 20.0,
     loss_scale: float = 3.0,
     shadows: str = "auto",
+    earthshine: str = "auto",
 ) -> Calibration:
-    """Fit a magnitude offset, attitude offsets and BRDF parameters of ``model``.
+    """Fit a magnitude offset, attitude and joint offsets and BRDF parameters of ``model``.
 
     Parameters
     ----------
-    model : FacetModel
-        The shape with its library materials (the prior).
+    model : FacetModel or ArticulatedModel
+        The shape with its library materials and joints (the prior).
     q : (E, 4) array
         The object's attitude at each observation (inertial → body), from its profile.
     observations : Observations
@@ -167,65 +259,108 @@ def calibrate(
         Fit a fixed rotation of the body from the profile, 3-2-1 Euler angles ``[roll,
         pitch, yaw]`` (deg, ``q = q_off ⊗ q``, as :func:`~lightcurve.photometry.profiles.
         offset_quaternion`), under a prior of ``offset_sigma_deg`` about zero.
+    joint_offsets : sequence of str
+        Parts of an articulated ``model`` whose joint offset (deg, added to the tracking or
+        scheduled angle) is fitted, under a prior of ``joint_sigma_deg`` about the stored
+        offset: how far the real pointing of, e.g., a Sun-tracking array is from its law.
     prior_dex, prior_fraction : float
         1σ of the prior about the library values: in log10 for log-scale parameters,
         as a fraction of the registry's search range otherwise.
     offset_sigma_deg : float
         1σ of the attitude offsets' prior (deg).
+    joint_sigma_deg : float
+        1σ of the joint offsets' prior (deg).
     loss_scale : float
         Residual (in units of the observations' 1σ) where the soft-L1 loss turns from
         quadratic to linear: observations further out (glints of the model or the sky,
         mis-identifications) weigh less.
     shadows : str
-        Self-shadowing mode of the renderer (:class:`~lightcurve.photometry.render.Renderer`).
+        Self-shadowing mode of the renderer (:class:`~lightcurve.photometry.render.Renderer`
+        or :class:`~lightcurve.photometry.articulated.ArticulatedRenderer`).
+    earthshine : {"auto", "on", "off"}
+        Include the Earth's light in the model
+        (:func:`~lightcurve.photometry.earthshine.earthshine_applies`: ``"auto"`` when the
+        observations carry the ``obj_*`` positions and the object is in low orbit).
 
     Returns
     -------
     Calibration
     """
     free = _free_parameters(model, parameters, prior_dex, prior_fraction)
-    layout = _Layout(offset, attitude_offsets, len(free))
+    joints = _joint_parts(model, joint_offsets)
+    layout = _Layout(offset, attitude_offsets, len(joints), len(free))
+    with_earth = earthshine_applies(earthshine, known_positions(observations), "earthshine")
     measured = np.asarray(observations.magnitudes, dtype=float)
     sigma = np.asarray(observations.magnitude_errors, dtype=float)
-    sun, observer = observations.sun_vectors, observations.observer_vectors
     finite = np.isfinite(measured) & np.isfinite(sigma) & (sigma > 0)
     if finite.sum() < layout.size + 1:
         raise ValueError(
             f"calibration: {int(finite.sum())} usable observations for {layout.size} parameters"
         )
     rows = np.flatnonzero(finite)
-    q, sun, observer = np.asarray(q, dtype=float)[rows], sun[rows], observer[rows]
+    q = np.asarray(q, dtype=float)[rows]
+    geometry = _Geometry.of(model, _subset(observations, finite), with_earth)
     measured, sigma = measured[rows], sigma[rows]
     faint = float(np.max(measured)) + 10.0  # a dark model epoch: far fainter than any data
 
+    def shape_at(x: np.ndarray) -> Shape:
+        shape = model.replace(materials=_materials(model, free, x[layout.materials]))
+        if joints:
+            shape = shape.with_joint_offsets(dict(zip(joints, x[layout.joints], strict=True)))
+        return shape
+
     def predicted(x: np.ndarray) -> np.ndarray:
-        materials = _materials(model, free, x[layout.materials])
-        renderer = Renderer(model.replace(materials=materials), shadows=shadows)
-        flux = renderer.flux(_turned(q, x[layout.angles]), sun, observer)
-        magnitude = np.minimum(flux_to_magnitude(np.asarray(flux)), faint)
+        turned = _turned(q, x[layout.angles])
+        flux = _model_flux(shape_at(x), turned, geometry, shadows)
+        magnitude = np.minimum(flux_to_magnitude(flux), faint)
         return magnitude + (x[0] if offset else 0.0)
 
-    prior_centre = np.concatenate([np.zeros(layout.n_angles), [f.to_search(f.prior) for f in free]])
-    prior_sigma = np.concatenate(
-        [np.full(layout.n_angles, offset_sigma_deg), [f.sigma for f in free]]
+    stored = [_stored_offset(model, part) for part in joints]
+    prior_centre = np.concatenate(
+        [np.zeros(layout.n_angles), stored, [f.to_search(f.prior) for f in free]]
     )
-    x0 = np.concatenate([np.zeros(int(offset)), prior_centre])
-    if offset:  # start at the median offset of the library model
-        x0[0] = float(np.median(measured - predicted(x0)))
+    prior_sigma = np.concatenate(
+        [
+            np.full(layout.n_angles, offset_sigma_deg),
+            np.full(len(joints), joint_sigma_deg),
+            [f.sigma for f in free],
+        ]
+    )
 
     def residuals(x: np.ndarray) -> np.ndarray:
         data = (measured - predicted(x)) / sigma
         return np.concatenate([data, (x[int(offset) :] - prior_centre) / prior_sigma])
 
-    lower = np.concatenate(
-        [np.full(int(offset) + layout.n_angles, -np.inf), [f.to_search(f.lower) for f in free]]
-    )
-    upper = np.concatenate(
-        [np.full(int(offset) + layout.n_angles, np.inf), [f.to_search(f.upper) for f in free]]
-    )
+    def started(x: np.ndarray) -> np.ndarray:
+        """``x`` with the magnitude offset at the median of the data's residuals."""
+        x = x.copy()
+        if offset:
+            x[0] = 0.0
+            x[0] = float(np.median(measured - predicted(x)))
+        return x
+
+    def robust_cost(x: np.ndarray) -> float:
+        """The fit's soft-L1 objective (``least_squares``' ``ρ``)."""
+        z = (residuals(x) / loss_scale) ** 2
+        return float(np.sum(2.0 * (np.sqrt(1.0 + z) - 1.0)))
+
+    x0 = started(np.concatenate([np.zeros(int(offset)), prior_centre]))
+    # joint offsets move glints across the data: the objective has a minimum per glint,
+    # so each starts at the best of a grid over ±3σ of its prior before the local fit
+    for k in np.arange(layout.size)[layout.joints]:
+        grid = x0[k] + joint_sigma_deg * np.linspace(-3.0, 3.0, 25)
+        trials = [started(np.where(np.arange(layout.size) == k, value, x0)) for value in grid]
+        x0 = min(trials, key=robust_cost)
+
+    unbounded = int(offset) + layout.n_angles + len(joints)
+    lower = np.concatenate([np.full(unbounded, -np.inf), [f.to_search(f.lower) for f in free]])
+    upper = np.concatenate([np.full(unbounded, np.inf), [f.to_search(f.upper) for f in free]])
     x0 = np.clip(x0, np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf))
+    # each unknown scaled by its prior's 1σ (the magnitude offset by 1 mag): the Jacobian's
+    # own scaling ("jac") crawls along the offset–albedo valley for hundreds of iterations
+    scale = np.concatenate([np.ones(int(offset)), prior_sigma])
     fit = least_squares(
-        residuals, x0, bounds=(lower, upper), loss="soft_l1", f_scale=loss_scale, x_scale="jac"
+        residuals, x0, bounds=(lower, upper), loss="soft_l1", f_scale=loss_scale, x_scale=scale
     )
     data = fit.fun[: len(measured)]
     spread = 1.4826 * float(np.median(np.abs(data - np.median(data))))
@@ -244,6 +379,13 @@ def calibrate(
             "sigma": float(sigmas[k]),
             "prior": 0.0,
             "constrained": bool(sigmas[k] < 0.5 * offset_sigma_deg),
+        }
+    for part, prior, k in zip(joints, stored, np.arange(layout.size)[layout.joints], strict=True):
+        out[f"{part}.joint_offset_deg"] = {
+            "value": float(fit.x[k]),
+            "sigma": float(sigmas[k]),
+            "prior": prior,
+            "constrained": bool(sigmas[k] < 0.5 * joint_sigma_deg),
         }
     for f, k in zip(free, np.arange(layout.size)[layout.materials], strict=True):
         value = f.from_search(float(fit.x[k]))
@@ -266,6 +408,8 @@ def calibrate(
         materials=_materials(model, free, fit.x[layout.materials]),
         shadows=shadows,
         offset_deg=fit.x[layout.angles].copy() if attitude_offsets else np.zeros(3),
+        joint_offsets_deg={p: float(v) for p, v in zip(joints, fit.x[layout.joints], strict=True)},
+        earthshine=with_earth,
     )
 
 
@@ -276,10 +420,12 @@ ATTITUDE_OFFSETS = ("offset_roll_deg", "offset_pitch_deg", "offset_yaw_deg")
 @dataclass(frozen=True)
 class _Layout:
     """Where each kind of unknown sits in the fit's vector: the magnitude offset, the
-    attitude offsets (deg), the BRDF parameters (search coordinates)."""
+    attitude offsets (deg), the joint offsets (deg), the BRDF parameters (search
+    coordinates)."""
 
     offset: bool
     attitude_offsets: bool
+    n_joints: int
     n_materials: int
 
     @property
@@ -288,7 +434,7 @@ class _Layout:
 
     @property
     def size(self) -> int:
-        return int(self.offset) + self.n_angles + self.n_materials
+        return int(self.offset) + self.n_angles + self.n_joints + self.n_materials
 
     @property
     def angles(self) -> slice:
@@ -296,8 +442,34 @@ class _Layout:
         return slice(first, first + self.n_angles)
 
     @property
+    def joints(self) -> slice:
+        first = int(self.offset) + self.n_angles
+        return slice(first, first + self.n_joints)
+
+    @property
     def materials(self) -> slice:
-        return slice(int(self.offset) + self.n_angles, self.size)
+        return slice(self.size - self.n_materials, self.size)
+
+
+def _joint_parts(model: Shape, names: Sequence[str]) -> list[str]:
+    """The parts whose joint offsets are fitted, checked: moving parts of ``model``."""
+    names = list(dict.fromkeys(names))
+    if not names:
+        return []
+    moving = [p.name for p in _as_articulated(model).articulation.moving]
+    unknown = [n for n in names if n not in moving]
+    if unknown:
+        raise ValueError(
+            f"calibration: {model.name} has no moving part(s) {', '.join(unknown)} "
+            f"(moving parts: {', '.join(moving) or 'none'})"
+        )
+    return names
+
+
+def _stored_offset(model: Shape, part: str) -> float:
+    """The joint offset (deg) the library stores for ``part``."""
+    parts = _as_articulated(model).articulation.parts
+    return float(next(p.joint.offset_deg for p in parts if p.name == part))
 
 
 def _turned(q: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -309,7 +481,7 @@ def _turned(q: np.ndarray, angles: np.ndarray) -> np.ndarray:
 
 
 def _free_parameters(
-    model: FacetModel, names: Sequence[str], prior_dex: float, prior_fraction: float
+    model: Shape, names: Sequence[str], prior_dex: float, prior_fraction: float
 ) -> list[_Free]:
     """The fitted parameters named ``"group.name"`` (or ``"group.*"``), with their priors."""
     free: list[_Free] = []
@@ -337,7 +509,7 @@ def _free_parameters(
     return free
 
 
-def _materials(model: FacetModel, free: Sequence[_Free], x: np.ndarray) -> dict[str, Material]:
+def _materials(model: Shape, free: Sequence[_Free], x: np.ndarray) -> dict[str, Material]:
     """The model's materials with the fitted values ``x`` (search coordinates). Lobe weights
     whose sum would exceed one are scaled down to sum to one (energy conservation)."""
     params = {g: dict(m.params) for g, m in model.materials.items()}
@@ -368,7 +540,7 @@ def night_index(mjd: np.ndarray, longitude_deg: float) -> np.ndarray:
 
 
 def cross_validate(
-    model: FacetModel,
+    model: Shape,
     q: np.ndarray,
     observations: Observations,
     nights: np.ndarray,
@@ -402,9 +574,7 @@ def cross_validate(
         train = _subset(observations, ~test)
         calibration = calibrate(model, np.asarray(q)[~test], train, **options)
         test_obs = _subset(observations, test)
-        predicted = calibration.magnitude(
-            model, np.asarray(q)[test], test_obs.sun_vectors, test_obs.observer_vectors
-        )
+        predicted = calibration.magnitude(model, np.asarray(q)[test], test_obs)
         residual = test_obs.magnitudes - predicted  # +inf where the model is dark: left out
         residual = np.where(np.isfinite(residual), residual, np.nan)
         held_out[test] = residual

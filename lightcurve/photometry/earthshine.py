@@ -18,7 +18,17 @@ kinks are then at the ends of the polar pieces, found on a 257-point grid. For a
 plate facing the nadir, against an independent integral over the visible Earth's surface
 (altitudes 300–36 000 km, Sun elevations −60° to 90° seen from the object), the default
 3 × 8 × 16 = 384 directions are within 0.15 % and 3 × 4 × 8 = 96 within 1.0 %
-(``tests/lightcurve/photometry/test_earthshine.py``).
+(``tests/lightcurve/photometry/test_earthshine.py``). :func:`earthshine_flux` uses the latter
+by default: 1 % of the earthshine is at most 0.3 % of the object's flux (a Lambertian Earth of
+albedo 0.29 filling a hemisphere), and the cost is 96 renderings per epoch, not 384.
+
+When it applies
+---------------
+The Earth's irradiance on a surface facing the nadir is at most ``A (R/r)²`` of the Sun's
+(the whole visible cap lit, the view factor of a sphere). It reaches 1 % of the Sun's (about
+0.01 mag) below the altitude ``R (√(A/0.01) − 1)`` = :data:`EARTHSHINE_ALTITUDE_KM` (27 970 km
+for ``A`` = 0.29): there ``earthshine="auto"`` (:func:`earthshine_applies`) adds it; in GEO it
+is at most 0.66 % of the Sun's and is left out unless asked for.
 
 References
 ----------
@@ -29,14 +39,26 @@ Fankhauser, F., Tyson, J. A., & Askari, J. (2023). Satellite optical brightness.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from lightcurve.io.observations import OBJECT_POSITION_COLUMNS
+from lightcurve.photometry.articulated import ArticulatedRenderer
 from lightcurve.sky.geometry import AU_M
 from lightcurve.sky.shadow_earth import EARTH_RADIUS_KM
 
-__all__ = ["EARTH_ALBEDO", "earth_cap_quadrature", "earthshine_flux"]
+__all__ = [
+    "EARTHSHINE_ALTITUDE_KM",
+    "EARTHSHINE_MODES",
+    "EARTH_ALBEDO",
+    "earth_cap_quadrature",
+    "earthshine_applies",
+    "earthshine_flux",
+    "known_positions",
+    "sun_and_earth_flux",
+]
 
 #: Bond albedo of the Earth (global annual mean, Stephens et al. 2015, *Rev. Geophys.* 53,
 #: 141: 0.29), the default of the Lambertian Earth.
@@ -44,6 +66,49 @@ EARTH_ALBEDO = 0.29
 
 #: Earth radius (m), the WGS84 equatorial radius used by the Earth-shadow model.
 EARTH_RADIUS_M = EARTH_RADIUS_KM * 1e3
+
+#: Altitude (km) below which the Earth's light can reach 1 % of the Sun's on a surface
+#: facing the nadir, ``R (√(A / 0.01) − 1)`` with the default albedo: where ``"auto"`` adds it.
+EARTHSHINE_ALTITUDE_KM = round(EARTH_RADIUS_KM * (math.sqrt(EARTH_ALBEDO / 0.01) - 1.0), -1)
+
+#: ``earthshine`` choices: add it below :data:`EARTHSHINE_ALTITUDE_KM`, always, never.
+EARTHSHINE_MODES = ("auto", "on", "off")
+
+
+def earthshine_applies(mode: str, position: Any | None, where: str = "earthshine") -> bool:
+    """Whether earthshine is added, by ``mode`` and the object's geocentric positions.
+
+    Parameters
+    ----------
+    mode : {"auto", "on", "off"}
+        ``"auto"``: when positions are known and the object is below
+        :data:`EARTHSHINE_ALTITUDE_KM` at any epoch (a whole file is rendered alike).
+    position : (E, 3) array or None
+        Geocentric positions (m); None when the observations carry none (an object not in
+        Earth orbit, or a file without the ``obj_*`` columns).
+    where : str
+        Named in the error of ``"on"`` without positions.
+
+    Raises
+    ------
+    ValueError
+        An unknown mode, or ``"on"`` without positions.
+    """
+    if mode not in EARTHSHINE_MODES:
+        raise ValueError(f"{where} must be one of {', '.join(EARTHSHINE_MODES)}, got {mode!r}")
+    if mode == "off":
+        return False
+    if position is None:
+        if mode == "on":
+            raise ValueError(
+                f"{where} on needs the object's geocentric position: the obj_x obj_y obj_z "
+                "columns that `lightcurve geometry` and `lightcurve import` write"
+            )
+        return False
+    if mode == "on":
+        return True
+    altitude_km = np.linalg.norm(np.asarray(position, float), axis=-1) / 1e3 - EARTH_RADIUS_KM
+    return bool(np.any(altitude_km < EARTHSHINE_ALTITUDE_KM))
 
 
 def earth_cap_quadrature(
@@ -174,19 +239,23 @@ def earthshine_flux(
     sun: Any,
     *,
     albedo: float = EARTH_ALBEDO,
-    n_polar: int = 8,
-    n_azimuth: int = 16,
+    n_polar: int = 4,
+    n_azimuth: int = 8,
+    columns: Mapping[str, Any] | None = None,
 ) -> np.ndarray:
     """Flux ratio ``F_obs / F☉`` of the object lit by the Earth alone.
 
     The object's renderer is evaluated with each quadrature direction of
     :func:`earth_cap_quadrature` as the light at the Sun's irradiance and the results are
     summed with the weights: every facet's BRDF and the renderer's shadow mode apply to
-    the Earth's light as to the Sun's.
+    the Earth's light as to the Sun's. The joints of an articulated shape stay where the
+    Sun puts them (a Sun-tracking array does not turn to the Earth).
 
     Parameters
     ----------
-    renderer : lightcurve.photometry.render.Renderer
+    renderer : Renderer or ArticulatedRenderer
+        :class:`~lightcurve.photometry.render.Renderer`, or
+        :class:`~lightcurve.photometry.articulated.ArticulatedRenderer`.
     q : (E, 4) array
         Attitudes (inertial → body).
     observer : (E, 3) array
@@ -196,13 +265,16 @@ def earthshine_flux(
     sun : (E, 3) array
         Object → Sun vectors (m, inertial).
     albedo, n_polar, n_azimuth
-        See :func:`earth_cap_quadrature`.
+        See :func:`earth_cap_quadrature` (the default 96 directions: within 1 %).
+    columns : mapping, optional
+        Observation-file columns of an articulated shape's ``scheduled`` joints, ``(E,)`` each.
 
     Returns
     -------
     (E,) numpy.ndarray
         Add it to the sunlit flux ratio for the total.
     """
+
     directions, weights = earth_cap_quadrature(
         position, sun, albedo=albedo, n_polar=n_polar, n_azimuth=n_azimuth
     )
@@ -210,10 +282,59 @@ def earthshine_flux(
     flux = np.zeros(np.shape(weights))
     rows, nodes = np.nonzero(lit)
     if len(rows):
+        pose = {}
+        if isinstance(renderer, ArticulatedRenderer):
+            pose["joint_sun"] = np.asarray(sun, dtype=float)[rows]
+            if columns is not None:
+                pose["columns"] = {k: np.asarray(v, float)[rows] for k, v in columns.items()}
         # one light per lit node at 1 AU: the renderer's (1 AU / r)² scale is then 1
         flux[rows, nodes] = renderer.flux(
             np.asarray(q, dtype=float)[rows],
             directions[rows, nodes] * AU_M,
             np.asarray(observer, dtype=float)[rows],
+            **pose,
         )
     return np.sum(weights * flux, axis=-1)
+
+
+def known_positions(observations: Any) -> np.ndarray | None:
+    """The object's geocentric positions (m) of an observation table with the ``obj_*``
+    columns, else None."""
+    if all(c in observations.table for c in OBJECT_POSITION_COLUMNS):
+        return observations.object_positions
+    return None
+
+
+def sun_and_earth_flux(
+    renderer: Any,
+    q: Any,
+    sun: Any,
+    observer: Any,
+    position: Any | None = None,
+    *,
+    columns: Mapping[str, Any] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flux ratios of the object lit by the Sun and by the Earth.
+
+    Parameters
+    ----------
+    renderer : Renderer or ArticulatedRenderer
+    q : (E, 4) array
+        Attitudes (inertial → body).
+    sun, observer : (E, 3) array
+        Object → Sun and object → observer vectors (m, inertial).
+    position : (E, 3) array or None
+        Geocentric positions of the object (m, inertial) to render the Earth's light from
+        (:func:`earthshine_flux`); None for none (zeros).
+    columns : mapping, optional
+        Columns of an articulated shape's ``scheduled`` joints.
+
+    Returns
+    -------
+    sunlit, earthlit : (E,) numpy.ndarray
+    """
+    pose = {} if columns is None else {"columns": columns}
+    sunlit = np.asarray(renderer.flux(q, sun, observer, **pose), dtype=float)
+    if position is None:
+        return sunlit, np.zeros_like(sunlit)
+    return sunlit, earthshine_flux(renderer, q, observer, position, sun, columns=columns)

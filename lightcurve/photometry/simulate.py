@@ -25,9 +25,19 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from filters.attitude import quaternion_normalize, validate_inertia
-from lightcurve.io.observations import TRUTH_COLUMNS, Observations, validate_table
+from lightcurve.io.observations import (
+    TRUTH_COLUMNS,
+    Observations,
+    validate_table,
+)
+from lightcurve.photometry.articulated import ArticulatedRenderer, scheduled_columns
 from lightcurve.photometry.bands import band_header, band_offset
-from lightcurve.photometry.earthshine import earthshine_flux
+from lightcurve.photometry.earthshine import (
+    EARTH_ALBEDO,
+    earthshine_applies,
+    known_positions,
+    sun_and_earth_flux,
+)
 from lightcurve.photometry.noise import (
     CCDNoise,
     GaussianNoise,
@@ -162,7 +172,7 @@ def simulate(
     yaw_steering: bool = False,
     band: tuple[str, str] | None = None,
     magnitude_offset: float = 0.0,
-    earthshine: bool = False,
+    earthshine: str = "auto",
 ) -> Observations:
     """Simulate a light curve over the epochs of a geometry table.
 
@@ -200,10 +210,12 @@ def simulate(
     magnitude_offset : float
         Added to every magnitude before the noise (mag): a calibrated albedo–area scale
         (:mod:`lightcurve.photometry.calibration`); recorded in the header when not 0.
-    earthshine : bool
+    earthshine : {"auto", "on", "off"}
         Add the light of a Lambertian Earth (:mod:`lightcurve.photometry.earthshine`, the
-        default quadrature) and an ``earthshine_fraction`` column (its share of the flux).
-        Needs the object's position (``obj_*`` columns); not for articulated shapes.
+        default quadrature) and an ``earthshine_fraction`` column (its share of the flux):
+        ``"auto"`` when the table carries the object's position (``obj_*`` columns) and the
+        object is below :data:`~lightcurve.photometry.earthshine.EARTHSHINE_ALTITUDE_KM` at
+        some epoch; ``"on"`` needs the position. The header's ``earthshine`` records it.
 
     Returns
     -------
@@ -223,34 +235,26 @@ def simulate(
         yaw_steering=yaw_steering,
     )
     extra: dict[str, np.ndarray] = {}  # columns added to the table: joint angles, earthshine
+    position = known_positions(geometry)
+    with_earth = earthshine_applies(earthshine, position)
+    columns = None
     if isinstance(shape, ArticulatedModel):
-        if earthshine:
-            raise ValueError("earthshine is not rendered for articulated shapes yet")
-        from lightcurve.photometry.articulated import ArticulatedRenderer
-
         renderer = ArticulatedRenderer(shape, shadows=shadows)
-        columns = {
-            p.joint.column: geometry.table[p.joint.column].to_numpy(float)
-            for p in shape.articulation.parts
-            if p.joint.column is not None and p.joint.column in geometry.table
-        }
-        args = (states[:, :4], geometry.sun_vectors, geometry.observer_vectors)
-        magnitude = renderer.magnitude(*args, columns)
-        angles = renderer.joint_angles(args[0], args[1], columns)
+        columns = scheduled_columns(shape, geometry.table)
+        angles = renderer.joint_angles(states[:, :4], geometry.sun_vectors, columns)
         for part, angle in zip(shape.articulation.names, angles, strict=True):
             extra[f"joint_{part}_deg"] = angle
     else:
         renderer = Renderer(shape, shadows=shadows)
-        sun, observer = geometry.sun_vectors, geometry.observer_vectors
-        flux = np.asarray(renderer.flux(states[:, :4], sun, observer))
-        if earthshine:
-            lit_by_earth = earthshine_flux(
-                renderer, states[:, :4], observer, geometry.object_positions, sun
-            )
-            flux = flux + lit_by_earth
-            with np.errstate(invalid="ignore", divide="ignore"):
-                extra["earthshine_fraction"] = np.where(flux > 0, lit_by_earth / flux, 0.0)
-        magnitude = flux_to_magnitude(flux)
+    sun, observer = geometry.sun_vectors, geometry.observer_vectors
+    sunlit, earthlit = sun_and_earth_flux(
+        renderer, states[:, :4], sun, observer, position if with_earth else None, columns=columns
+    )
+    flux = sunlit + earthlit
+    if with_earth:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            extra["earthshine_fraction"] = np.where(flux > 0, earthlit / flux, 0.0)
+    magnitude = flux_to_magnitude(flux)
     if band is not None:
         magnitude = magnitude + band_offset(*band)
     magnitude = magnitude + magnitude_offset
@@ -283,6 +287,7 @@ def simulate(
             "inertia": ",".join(f"{v:.12g}" for v in np.asarray(inertia).ravel()),
             "noise": noise.describe() if noise is not None else "none",
             "shadows": renderer.shadows,
+            "earthshine": f"lambertian earth, albedo {EARTH_ALBEDO}" if with_earth else "off",
             "seed": str(seed) if not isinstance(seed, np.random.Generator) else "generator",
         }
     )

@@ -57,31 +57,6 @@ _PRIMITIVES = {
 }
 
 
-def _starlink() -> FacetModel:
-    """Starlink v1.5 as two surfaces in the frame of the yaw-steered nadir profile: the
-    chassis's underside facing nadir (+z), the solar array, perpendicular to it, facing the
-    Sun's horizontal direction (+x); the two-lobe fits to the lab BRDFs of Fankhauser, Askari
-    & Tyson (2023) (:data:`shapes.material.STARLINK_CHASSIS`, ``STARLINK_SOLAR_ARRAY``)."""
-    materials = {"chassis": STARLINK_CHASSIS, "solar_array": STARLINK_SOLAR_ARRAY}
-    return primitives.panels(
-        {
-            "chassis": ((0.0, 0.0, 1.0), 3.64, (0.0, 0.0, 0.0)),
-            "solar_array": ((1.0, 0.0, 0.0), 22.68, (2.0, 0.0, -2.0)),
-        },
-        materials,
-        name="starlink_v1_5",
-    )
-
-
-_PRIMITIVES["starlink_v1_5"] = (
-    _starlink,
-    {"mass": 306.0},
-    "Starlink v1.5 as two surfaces (Fankhauser, Askari & Tyson 2023): 3.64 m² chassis "
-    "underside facing +z, 22.68 m² solar array facing +x, lab-fitted two-lobe materials; fly "
-    "it with --profile nadir --yaw-steering (z to nadir, the Sun in the x-z plane) and "
-    "--shadows none as the paper's model; 306 kg thin shell",
-)
-
 #: Articulated entries: (builder, options, parts, description).
 _ARTICULATED = {
     "box_wing_tracking": (
@@ -105,7 +80,47 @@ _ARTICULATED = {
         "track the Sun (continuous drive, cell-side normal +x at angle 0); fly it with body y "
         "along the orbit normal (nadir or Sun pointing)",
     ),
+    "starlink_v1_5": (
+        lambda: _starlink(),
+        {"mass": 306.0},
+        [
+            {
+                "name": "array",
+                "groups": ["solar_array"],
+                "joint": {
+                    "kind": "sun_tracking",
+                    "axis": [0.0, 0.0, 1.0],
+                    "pivot": [0.0, 0.0, -3.5],
+                    "normal": [1.0, 0.0, 0.0],
+                    "limits_deg": [-180.0, 180.0],
+                    "offset_deg": 0.0,
+                },
+            }
+        ],
+        "Starlink v1.5 as two surfaces (Fankhauser, Askari & Tyson 2023): 3.64 m² chassis "
+        "underside facing +z, 22.68 m² solar array above it turning about z to face the "
+        "Sun's horizontal direction (normal +x at angle 0), lab-fitted two-lobe materials; "
+        "fly it with --profile nadir (z to nadir) and --shadows none as the paper's model; "
+        "306 kg thin shell",
+    ),
 }
+
+
+def _starlink() -> FacetModel:
+    """Starlink v1.5 as two surfaces in the nadir profile's frame: the chassis's underside
+    facing nadir (+z) and the solar array, perpendicular to it, centred 3.5 m above it,
+    cell side +x at joint angle 0; the two-lobe fits to the lab BRDFs of Fankhauser, Askari
+    & Tyson (2023) (:data:`shapes.material.STARLINK_CHASSIS`, ``STARLINK_SOLAR_ARRAY``)."""
+    materials = {"chassis": STARLINK_CHASSIS, "solar_array": STARLINK_SOLAR_ARRAY}
+    return primitives.panels(
+        {
+            "chassis": ((0.0, 0.0, 1.0), 3.64, (0.0, 0.0, 0.0)),
+            "solar_array": ((1.0, 0.0, 0.0), 22.68, (0.0, 0.0, -3.5)),
+        },
+        materials,
+        name="starlink_v1_5",
+    )
+
 
 _ASTEROIDS = {
     "itokawa": (

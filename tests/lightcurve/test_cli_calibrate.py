@@ -96,6 +96,56 @@ def test_bad_requests_get_one_clean_line(nights, capsys):
     argv = ["simulate", str(files[0]), "--shape", "box_wing", "--profile", "nadir"]
     assert main([*argv, "--calibration", str(bad), "--out", str(folder / "x.csv")]) != 0
     assert "not a calibration file" in capsys.readouterr().err
+    assert main([*base, "--fit", "scale,articulation", *out]) != 0
+    assert "--fit articulation: box_wing has no moving parts" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse's own one line
+        main([*base, "--earthshine", "sometimes", *out])
+    assert "invalid choice: 'sometimes'" in capsys.readouterr().err
+
+
+def test_a_tracking_array_s_offset_through_the_public_commands(tmp_path):
+    """simulate (a box-wing whose arrays track the Sun 8° off, LEO passes with the Earth's
+    light) → calibrate --fit scale,articulation → simulate --calibration: the offset is
+    recovered within 2σ and the calibrated model reproduces the truth's light curve."""
+    from lightcurve import io
+
+    geometry = tmp_path / "leo.csv"
+    argv = ["geometry", "--start", "2024-06-10T02:00:00", "--duration", "21600"]  # 83 epochs
+    argv += ["--cadence", "10", "--radius", "6928", "--inclination", "53", "--raan", "180"]
+    argv += ["--name", "sat", "--out", str(geometry)]
+    assert main(argv) == 0
+    truth = tmp_path / "truth.json"
+    truth.write_text(
+        json.dumps(
+            {
+                "shape": "box_wing_tracking",
+                "magnitude_offset": 0.2,
+                "offset_deg": [0, 0, 0],
+                "joint_offsets_deg": {"arrays": 8.0},
+                "earthshine": True,
+                "materials": {},
+            }
+        )
+    )
+    observed = tmp_path / "observed.csv"
+    fly = ["--shape", "box_wing_tracking", "--profile", "nadir", "--shadows", "none"]
+    argv = ["simulate", str(geometry), *fly, "--noise-mag", str(NOISE), "--calibration"]
+    assert main([*argv, str(truth), "--out", str(observed)]) == 0
+    assert "earthshine_fraction" in io.read(observed).table
+    fit = tmp_path / "fit"
+    argv = ["calibrate", str(observed), *fly, "--fit", "scale,articulation", "--out", str(fit)]
+    assert main(argv) == 0
+    summary = json.loads((fit / "summary.json").read_text())
+    assert summary["earthshine"] is True
+    for key, true in (("arrays.joint_offset_deg", 8.0), ("magnitude_offset", 0.2)):
+        entry = summary["parameters"][key]
+        assert abs(entry["value"] - true) <= 2.0 * entry["sigma"], (key, entry)
+    again, exact = tmp_path / "again.csv", tmp_path / "exact.csv"
+    argv = ["simulate", str(geometry), *fly, "--calibration"]
+    assert main([*argv, str(fit / "calibration.json"), "--out", str(again)]) == 0
+    assert main([*argv, str(truth), "--out", str(exact)]) == 0
+    difference = io.read(again).magnitudes - io.read(exact).magnitudes
+    assert np.sqrt(np.mean(difference**2)) < NOISE
 
 
 def test_the_pomenis_workflow_through_the_public_commands(tmp_path, capsys):

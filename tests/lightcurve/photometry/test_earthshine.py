@@ -121,8 +121,10 @@ def test_simulate_adds_the_earth_s_light_and_its_share(tmp_path):
     geometry = orbit_geometry(CircularOrbit.geostationary(-100.0, mjd[0]), site, mjd, "geo")
     state = {"q0": np.array([0.1, 0.2, 0.3, 0.9]), "omega0": np.radians([0.5, 1.0, -0.3])}
     box = get_library().load("box")
-    plain = simulate(geometry, box, **state)
-    lit = simulate(geometry, box, **state, earthshine=True)
+    plain = simulate(geometry, box, **state)  # GEO: above the altitude where auto adds it
+    assert "earthshine_fraction" not in plain.table and plain.meta["earthshine"] == "off"
+    lit = simulate(geometry, box, **state, earthshine="on")
+    assert lit.meta["earthshine"].startswith("lambertian")
     share = lit.table["earthshine_fraction"].to_numpy()
     assert np.all((share > 0.0) & (share < 0.2))
     # the magnitudes brighten by exactly the share
@@ -133,5 +135,66 @@ def test_simulate_adds_the_earth_s_light_and_its_share(tmp_path):
     io.write(geometry, path)
     out = tmp_path / "sim.csv"
     argv = ["simulate", str(path), "--shape", "box", "--q0", "0,0,0,1"]
-    assert main([*argv, "--omega0", "0.5,1,-0.3", "--earthshine", "--out", str(out)]) == 0
+    assert main([*argv, "--omega0", "0.5,1,-0.3", "--earthshine", "on", "--out", str(out)]) == 0
     assert "earthshine_fraction" in io.read(out).table
+
+
+def test_auto_adds_earthshine_below_the_stated_altitude_only():
+    from lightcurve.photometry.earthshine import EARTHSHINE_ALTITUDE_KM, earthshine_applies
+
+    # the altitude where a full Earth gives a nadir plate 1 % of the Sun's irradiance
+    r = EARTH_RADIUS_M + EARTHSHINE_ALTITUDE_KM * 1e3
+    assert 0.29 * (EARTH_RADIUS_M / r) ** 2 == pytest.approx(0.01, rel=2e-3)
+    low = np.array([[EARTH_RADIUS_M + 5.5e5, 0.0, 0.0]])
+    geo = np.array([[4.2164e7, 0.0, 0.0]])
+    assert earthshine_applies("auto", low) and not earthshine_applies("auto", geo)
+    assert earthshine_applies("auto", np.vstack([geo, low]))  # one file, rendered alike
+    assert earthshine_applies("on", geo) and not earthshine_applies("off", low)
+    assert not earthshine_applies("auto", None)
+    with pytest.raises(ValueError, match="obj_x obj_y obj_z"):
+        earthshine_applies("on", None)
+    with pytest.raises(ValueError, match="auto, on, off"):
+        earthshine_applies("yes", low)
+
+
+def test_a_sun_tracking_array_keeps_its_sun_pose_under_the_earth_s_light():
+    """The articulated renderer lit from the Earth's directions poses its joints by the Sun:
+    its earthshine equals that of the rigid shape posed at the Sun-tracking angles."""
+    from lightcurve.photometry.articulated import ArticulatedRenderer
+    from shapes import get_library
+
+    rng = np.random.default_rng(3)
+    starlink = get_library().load("starlink_v1_5", articulated=True)
+    renderer = ArticulatedRenderer(starlink, shadows="none")
+    n = 20
+    position = rng.normal(size=(n, 3))
+    position *= (EARTH_RADIUS_M + 5.5e5) / np.linalg.norm(position, axis=1)[:, None]
+    sun = 1.5e11 * rng.normal(size=(n, 3))
+    observer = -position / np.linalg.norm(position, axis=1)[:, None] * 1e6 + rng.normal(
+        scale=3e5, size=(n, 3)
+    )
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    articulated = earthshine_flux(renderer, q, observer, position, sun)
+    angles = renderer.joint_angles(q, sun)[0]
+    rigid = np.array(
+        [
+            earthshine_flux(
+                Renderer(starlink.posed(starlink.moving_rotations(_sun_body(q[i], sun[i])))),
+                q[i : i + 1],
+                observer[i : i + 1],
+                position[i : i + 1],
+                sun[i : i + 1],
+            )[0]
+            for i in range(n)
+        ]
+    )
+    assert np.ptp(angles) > 10.0  # the array does turn between epochs
+    assert np.any(articulated > 0.0)
+    np.testing.assert_allclose(articulated, rigid, rtol=1e-9, atol=1e-15)
+
+
+def _sun_body(q, sun):
+    from filters.attitude import rotate
+
+    return rotate(q, sun)
