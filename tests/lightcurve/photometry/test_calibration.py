@@ -10,8 +10,8 @@ from lightcurve.io.observations import (
     Observations,
     validate_table,
 )
-from lightcurve.photometry.calibration import calibrate, cross_validate, night_index
 from lightcurve.photometry.articulated import ArticulatedRenderer
+from lightcurve.photometry.calibration import calibrate, cross_validate, night_index
 from lightcurve.photometry.render import Renderer
 from shapes import Material, get_library
 from shapes.articulation import ArticulatedModel
@@ -140,5 +140,5 @@ def test_joint_offsets_need_moving_parts(box_wing_case):
     with pytest.raises(ValueError, match="has no articulated parts"):
         calibrate(library, q, observations, joint_offsets=["arrays"])
     tracking = get_library().load("box_wing_tracking", articulated=True)
-    with pytest.raises(ValueError, match="no moving part.s. wings"):
+    with pytest.raises(ValueError, match=r"no moving part\(s\) wings"):
         calibrate(tracking, q, observations, joint_offsets=["wings"])
