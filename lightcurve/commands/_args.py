@@ -10,6 +10,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from lightcurve.commands._source import literal
+
 if TYPE_CHECKING:  # numpy is imported where a value is parsed: the top-level parser
     import numpy as np  # (``lightcurve --version``, ``--threads``) stays free of it
 
@@ -178,6 +180,19 @@ def add_band_options(parser: argparse.ArgumentParser, effect: str) -> None:
         choices=("vega", "ab"),
         default="vega",
         help="magnitude system of --band",
+    )
+
+
+def add_earthshine_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--earthshine auto|on|off`` (``args.earthshine``): the Earth's reflected light in
+    the model (:mod:`lightcurve.photometry.earthshine`)."""
+    parser.add_argument(
+        "--earthshine",
+        choices=literal("lightcurve.photometry.earthshine", "EARTHSHINE_MODES"),
+        default="auto",
+        help="the light of a Lambertian Earth (albedo 0.29): auto adds it when the files have "
+        "the obj_* columns and the object is below 27 970 km (where it can reach 1%% of the "
+        "Sun's light); on needs the obj_* columns; off",
     )
 
 

@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 
 from lightcurve.commands._args import (
+    add_earthshine_option,
     add_observation_files,
     add_output_folder,
     unit_quaternion,
 )
-from lightcurve.commands._source import literal
 
 NAME = "calibrate"
 HELP = "fit a shape's scale, materials and pointing offsets to observations with a profile"
@@ -87,13 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="self-shadowing of the shape",
     )
-    parser.add_argument(
-        "--earthshine",
-        choices=literal("lightcurve.photometry.earthshine", "EARTHSHINE_MODES"),
-        default="auto",
-        help="the Earth's reflected light in the model: auto below 27 970 km when the files "
-        "have the obj_* columns, on (needs them), off",
-    )
+    add_earthshine_option(parser)
     parser.add_argument("--library", help="shape library folder (default: the user's)")
     add_output_folder(parser)
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from lightcurve.commands._args import (
     add_band_options,
+    add_earthshine_option,
     band_of,
     float_vector,
     inertia_tensor,
@@ -87,14 +88,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="nadir profile: yaw about the nadir axis to keep the Sun in the body x-z plane",
     )
-    parser.add_argument(
-        "--earthshine",
-        choices=literal("lightcurve.photometry.earthshine", "EARTHSHINE_MODES"),
-        default="auto",
-        help="the light of a Lambertian Earth (albedo 0.29) and an earthshine_fraction column: "
-        "auto adds it when the file has the obj_* columns and the object is below 27 970 km "
-        "(where it can reach 1%% of the Sun's light); on needs the obj_* columns",
-    )
+    add_earthshine_option(parser)
     parser.add_argument(
         "--calibration",
         metavar="FILE",
