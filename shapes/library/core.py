@@ -70,6 +70,14 @@ from shapes.library.manifest import (
     swap_in,
     write_manifest,
 )
+from shapes.library.proxy import (
+    PROXY_MIN_FACETS,
+    PROXY_START_FACETS,
+    PROXY_TOLERANCE_MAG,
+    ProxyMeter,
+    choose_proxy,
+    stage_proxy,
+)
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
@@ -199,10 +207,35 @@ class ShapeLibrary:
             parts = self.articulation(name)
             model = self.load(name, build_visibility=build_visibility, visibility=visibility)
             return model if parts is None else ArticulatedModel(model, parts)
-        mesh_path = self.path / manifest_field(entry, "mesh", str, where)
+        model = self._read_mesh(name, entry, entry, where)
+        if not visibility:
+            return model
+        if entry.get("visibility"):
+            try:
+                return model.with_visibility(self._read_table(entry))
+            except TableFormatError as exc:
+                if self.read_only or not build_visibility:
+                    raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
+                logger.warning("%s: %s; rebuilding it", where, exc)
+                return self._rebuild(name, model, entry, self.path / entry["visibility"])
+            except ShapeError as exc:
+                raise ShapeError(f"{where}: {exc}") from None
+        if not build_visibility or model.is_convex or entry.get("shadows") == "none":
+            return model
+        table = build_visibility_table(model)
+        if not self.read_only:
+            self._store_table(name, entry["sha256"], table)
+        return model.with_visibility(table)
+
+    def _read_mesh(
+        self, name: str, entry: Mapping[str, Any], files: Mapping[str, Any], where: str
+    ) -> FacetModel:
+        """The mesh named by ``files["mesh"]`` (checked against ``files["sha256"]``) with the
+        materials, unit, inertia and provenance of the shape's ``entry``."""
+        mesh_path = self.path / manifest_field(files, "mesh", str, where)
         if not mesh_path.is_file():
             raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
-        if file_sha256(mesh_path) != entry.get("sha256"):
+        if file_sha256(mesh_path) != files.get("sha256"):
             raise ShapeError(
                 f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)"
             )
@@ -214,40 +247,48 @@ class ShapeLibrary:
         source = inertia_spec.get("source")
         if source not in ("solid", "shell", "given"):
             raise ShapeError(f"{where}: inertia source must be solid, shell or given")
-        model = load_mesh(
+        given = source == "given" or files is not entry  # a proxy: the full mesh's inertia
+        return load_mesh(
             mesh_path,
             unit=manifest_field(entry, "unit", str, where),
             name=name,
             materials=materials,
-            inertia=np.asarray(inertia_spec.get("tensor"), float) if source == "given" else source,
+            inertia=np.asarray(inertia_spec.get("tensor"), float) if given else source,
             mass=inertia_spec.get("mass"),
-            center_of_mass=inertia_spec.get("center_of_mass") if source == "given" else None,
+            center_of_mass=inertia_spec.get("center_of_mass") if given else None,
             provenance=entry.get("provenance", {}),
         )
-        table_name = entry.get("visibility")
-        if not visibility:
-            return model
-        if table_name:
-            table_path = self.path / table_name
-            if not table_path.is_file() or file_sha256(table_path) != entry.get(
-                "visibility_sha256"
-            ):
-                raise ShapeError(f"{where}: visibility table {table_name} missing or changed")
-            try:
-                return model.with_visibility(VisibilityTable.load(table_path))
-            except TableFormatError as exc:
-                if self.read_only or not build_visibility:
-                    raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
-                logger.warning("%s: %s; rebuilding it", where, exc)
-                return self._rebuild(name, model, entry, table_path)
-            except ShapeError as exc:
-                raise ShapeError(f"{where}: {exc}") from None
-        if not build_visibility or model.is_convex or entry.get("shadows") == "none":
-            return model
-        table = build_visibility_table(model)
-        if not self.read_only:
-            self._store_table(name, entry["sha256"], table)
-        return model.with_visibility(table)
+
+    def _read_table(self, files: Mapping[str, Any]) -> VisibilityTable | None:
+        """The table named by ``files["visibility"]`` (checked against its checksum)."""
+        table_name = files.get("visibility")
+        if not table_name:
+            return None
+        table_path = self.path / table_name
+        if not table_path.is_file() or file_sha256(table_path) != files.get("visibility_sha256"):
+            raise ShapeError(f"visibility table {table_name} missing or changed")
+        return VisibilityTable.load(table_path)
+
+    def load_proxy(self, name: str) -> FacetModel | None:
+        """The level-of-detail proxy of a shape (:mod:`shapes.library.proxy`) with its own
+        visibility table, or None for a shape without one.
+
+        Its materials, unit and mass properties are the full shape's; its error against the
+        full shape is :meth:`info`'s ``proxy`` record.
+        """
+        entry = self.info(check_name(name))
+        record = entry.get("proxy")
+        if record is None:
+            return None
+        where = f"{self.manifest_path}: proxy of shape {name!r}"
+        if not isinstance(record, dict):
+            raise ShapeError(f"{where}: field 'proxy' must be an object, got {record!r}")
+        model = self._read_mesh(name, entry, record, where)
+        try:
+            table = self._read_table(record)
+        except (ShapeError, TableFormatError) as exc:
+            raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
+        return model if table is None else model.with_visibility(table)
 
     def missing_table(self, name: str) -> str:
         """One line on a non-convex shape without a visibility table and how to build it."""
@@ -356,6 +397,7 @@ class ShapeLibrary:
         progress: bool = False,
         visibility_table: bool = True,
         announce: Callable[[str], None] | None = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
         """Add a shape from a mesh file.
 
@@ -386,7 +428,13 @@ class ShapeLibrary:
             then ray-cast its shadows or skip them, and :meth:`rebuild_visibility` builds it.
         announce : callable, optional
             Called with one line saying what table is built and how long it should take,
-            before the build starts.
+            before the build starts (and one line before the proxy is built).
+        proxy_meter : callable, optional
+            ``proxy_meter(model, proxy)`` → a proxy's light-curve error record (e.g.
+            :class:`lightcurve.photometry.proxy_error.ProxyErrorMeter`): a shape of more than
+            :data:`~shapes.library.proxy.PROXY_MIN_FACETS` facets then gets a
+            level-of-detail proxy (:mod:`shapes.library.proxy`), stored with it under the
+            entry's ``proxy`` record. None: no proxy.
 
         Returns
         -------
@@ -419,6 +467,7 @@ class ShapeLibrary:
             table_options=table_options,
             articulation=articulation,
             announce=announce,
+            proxy_meter=proxy_meter,
         )
 
     def add_model(
@@ -432,10 +481,11 @@ class ShapeLibrary:
         samples: int = DEFAULT_SAMPLES,
         spacing: float = DEFAULT_SPACING,
         parts: Any = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
         """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ.
 
-        ``parts`` as in :meth:`add`.
+        ``parts`` and ``proxy_meter`` as in :meth:`add`.
         """
         self._check_writable()
         check_name(name)
@@ -452,6 +502,7 @@ class ShapeLibrary:
             verbatim=None,
             table_options=table_options,
             articulation=articulation,
+            proxy_meter=proxy_meter,
         )
 
     def _check_free(self, name: str, force: bool) -> None:
@@ -471,9 +522,10 @@ class ShapeLibrary:
         table_options: dict[str, Any] | None,
         articulation: Articulation | None = None,
         announce: Callable[[str], None] | None = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
-        """Write mesh (+ table) under temporary names, then swap them in under the lock
-        (``table_options`` None: no table for a non-convex shape)."""
+        """Write mesh (+ table, + proxy) under temporary names, then swap them in under the
+        lock (``table_options`` None: no table for a non-convex shape)."""
         self.path.mkdir(parents=True, exist_ok=True)
         suffix = verbatim.suffix.lower() if verbatim is not None else ".obj"
         final = {"mesh": self.path / f"{name}{suffix}"}
@@ -510,7 +562,20 @@ class ShapeLibrary:
                 staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
                 table.save(staged["visibility"])
                 stored = stored.with_visibility(table)
+            proxy = None
+            if proxy_meter is not None and len(stored.faces) > PROXY_MIN_FACETS:
+                proxy = self._stage_proxy(
+                    name,
+                    stored,
+                    proxy_meter,
+                    table_options=table_options,
+                    announce=announce,
+                    final=final,
+                    staged=staged,
+                )
             entry = manifest_entry(name, stored, final, staged, provenance)
+            if proxy is not None:
+                entry["proxy"] = proxy
             if table_options is None and not stored.is_convex:
                 entry["shadows"] = "none"
             if articulation is not None:
@@ -519,13 +584,41 @@ class ShapeLibrary:
                 if name in manifest["shapes"] and not force:
                     raise ShapeError(f"shape {name!r} already exists in library {self.path}")
                 old = manifest["shapes"].get(name, {})
-                old_files = [self.path / old[k] for k in ("mesh", "visibility") if old.get(k)]
+                old_files = [self.path / file_name for file_name in _files(old)]
                 manifest["shapes"][name] = entry
                 swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
             return stored
         finally:
             for path in staged.values():
                 path.unlink(missing_ok=True)
+
+    def _stage_proxy(
+        self,
+        name: str,
+        model: FacetModel,
+        meter: ProxyMeter,
+        *,
+        table_options: Mapping[str, Any] | None,
+        announce: Callable[[str], None] | None,
+        final: dict[str, Path],
+        staged: dict[str, Path],
+    ) -> dict[str, Any] | None:
+        """Choose and stage the level-of-detail proxy of ``model``: its manifest record, or
+        None when no proxy of at most half the facets is accurate enough."""
+        if announce is not None:
+            announce(
+                f"level-of-detail proxy of the {len(model.faces)}-facet mesh (quadric "
+                f"decimation from {PROXY_START_FACETS} facets, doubled until its light curves "
+                f"are within {PROXY_TOLERANCE_MAG} mag rms of the full mesh's)"
+            )
+        options = None
+        if table_options is not None:
+            options = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+        chosen = choose_proxy(model, meter, table_options=options)
+        if chosen is None:
+            logger.info("%s: no proxy of at most half the facets is accurate enough", name)
+            return None
+        return stage_proxy(self.path, name, *chosen, final=final, staged=staged)
 
     def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
         """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
@@ -559,9 +652,15 @@ class ShapeLibrary:
                 raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
             entry = manifest["shapes"].pop(name)
             self._write_manifest(manifest)
-            for key in ("mesh", "visibility"):
-                if entry.get(key):
-                    (self.path / entry[key]).unlink(missing_ok=True)
+            for file_name in _files(entry):
+                (self.path / file_name).unlink(missing_ok=True)
+
+
+def _files(entry: Mapping[str, Any]) -> list[str]:
+    """The file names of a manifest entry: mesh, table, and its proxy's mesh and table."""
+    proxy = entry.get("proxy") or {}
+    names = [entry.get("mesh"), entry.get("visibility"), proxy.get("mesh"), proxy.get("visibility")]
+    return [name for name in names if name]
 
 
 def _articulation(
