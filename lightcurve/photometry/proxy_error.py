@@ -79,9 +79,8 @@ class ProxyErrorMeter:
         self._geometry = random_geometries(self.geometries, self.seed)
         self._reference: tuple[FacetModel, np.ndarray, str] | None = None
 
-    def _magnitudes(self, model: FacetModel) -> tuple[np.ndarray, str]:
-        renderer = Renderer(model)
-        return np.asarray(renderer.magnitude(*self._geometry), dtype=float), renderer.shadows
+    def _magnitudes(self, renderer: Renderer) -> np.ndarray:
+        return np.asarray(renderer.magnitude(*self._geometry), dtype=float)
 
     def __call__(self, model: FacetModel, proxy: FacetModel) -> dict:
         """The error record of ``proxy`` against ``model``.
@@ -99,15 +98,22 @@ class ProxyErrorMeter:
             The proxy renders with other shadowing than the full model, or no geometry
             shows both models.
         """
+        approx_renderer = Renderer(proxy)
         if self._reference is None or self._reference[0] is not model:
-            self._reference = (model, *self._magnitudes(model))
-        _, full, shadows = self._reference
-        approx, proxy_shadows = self._magnitudes(proxy)
-        if proxy_shadows != shadows:
+            full_renderer = Renderer(model)
+            if approx_renderer.shadows == full_renderer.shadows:
+                magnitudes = self._magnitudes(full_renderer)
+                self._reference = (model, magnitudes, full_renderer.shadows)
+            shadows = full_renderer.shadows
+        else:
+            shadows = self._reference[2]
+        if approx_renderer.shadows != shadows:
             raise ValueError(
-                f"{model.name}: the proxy renders with shadows {proxy_shadows!r}, the full "
-                f"shape with {shadows!r}"
+                f"{model.name}: the proxy renders with shadows {approx_renderer.shadows!r}, "
+                f"the full shape with {shadows!r}"
             )
+        full = self._reference[1]
+        approx = self._magnitudes(approx_renderer)
         seen = np.isfinite(full) & np.isfinite(approx)
         if not np.any(seen):
             raise ValueError(f"{model.name}: no random geometry shows both the shape and proxy")
