@@ -69,8 +69,9 @@ def decimate(model: FacetModel, n_facets: int) -> FacetModel:
     facets; a group already that small is kept), so groups and materials stay as they
     were. Quadric decimation moves vertices off the surface, so the proxy of a convex
     one-group body is replaced by the convex hull of its vertices (trimesh's), which keeps
-    it convex (rendered without shadows, like the full body). Mass properties are those of the full model (given inertia, centre of mass
-    and mass): the proxy stands for the same body.
+    it convex (rendered without shadows, like the full body). Mass properties are those
+    of the full model (given inertia, centre of mass and mass): the proxy stands for the
+    same body.
 
     Parameters
     ----------

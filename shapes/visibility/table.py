@@ -38,6 +38,7 @@ DEFAULT_RESOLUTION = 26
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_ENTRY_BLOCK = 1 << 20  # cell entries whose words are gathered at a time
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -282,17 +283,30 @@ class VisibilityTable:
             corners = self._cell_corners()
             front = facing_flags(self.grid.directions, self.normals)
             cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
+            del full_words, front
             count = np.diff(start)[facet]
             entry_word = np.cumsum(count) - count
-            row = np.repeat(np.arange(len(facet)), count)
-            segment = np.repeat(start[facet], count) + np.arange(count.sum()) - entry_word[row]
-            nodes = corners[cell[row]]
-            words = self.bits[nodes, seg["segment_word"][segment, None]]
+            cell_words = np.empty((int(count.sum()), 3), dtype=np.uint64)
+            # the words of each entry's segments at its cell's corners, a block of entries at
+            # a time (the index arrays of all entries at once take several GB at 10⁵ facets)
+            for first in range(0, len(facet), _ENTRY_BLOCK):
+                block = slice(first, first + _ENTRY_BLOCK)
+                n = count[block]
+                row = np.repeat(np.arange(len(n)), n)
+                within = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+                segment = start[facet[block]][row] + within
+                nodes = corners[cell[block][row]]
+                rows = slice(entry_word[first], entry_word[first] + len(row))
+                np.bitwise_and(
+                    self.bits[nodes, seg["segment_word"][segment, None]],
+                    seg["segment_mask"][segment, None],
+                    out=cell_words[rows],
+                )
             self._cache["cells"] = {
                 "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
                 "entry_facet": facet.astype(np.int32),
                 "entry_word": entry_word.astype(np.int64),
-                "cell_words": np.ascontiguousarray(words & seg["segment_mask"][segment, None]),
+                "cell_words": cell_words,
             }
         return self._cache["cells"]
 
@@ -305,14 +319,19 @@ class VisibilityTable:
         per_facet = np.bincount(order[used], minlength=self.n_facets)
         first_column = np.cumsum(per_facet) - per_facet
         facet = cells["entry_facet"]
-        count = per_facet[facet]
-        source = np.repeat(np.arange(len(facet)), count)
-        step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-        entry_facet = np.ascontiguousarray(facet[source])
-        entry_word = np.ascontiguousarray(cells["entry_word"][source])
         start = cells["cell_start"]
-        entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
-        value = np.empty((len(source), 4))
+        if np.all(per_facet == 1):  # every facet in one column (a renderer's order): no copies
+            entry_facet, entry_word, step = facet, cells["entry_word"], 0
+            cell_start = start
+        else:
+            count = per_facet[facet]
+            source = np.repeat(np.arange(len(facet)), count)
+            step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            entry_facet = np.ascontiguousarray(facet[source])
+            entry_word = np.ascontiguousarray(cells["entry_word"][source])
+            entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
+            cell_start = np.searchsorted(entry_cell[source], np.arange(len(start)))
+        value = np.empty((len(entry_facet), 4))
         _kernels().cell_fractions(
             cells["cell_words"],
             entry_word,
@@ -323,9 +342,7 @@ class VisibilityTable:
         )
         value[:, 3] = columns[first_column[entry_facet] + step]
         return {
-            "cell_start": np.searchsorted(entry_cell[source], np.arange(len(start))).astype(
-                np.int64
-            ),
+            "cell_start": cell_start.astype(np.int64),
             "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
             "entry_value": value,
             "entry_facet": entry_facet,
