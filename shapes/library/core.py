@@ -2,35 +2,14 @@
 
 Layout::
 
-    <library>/manifest.json              the manifest (below)
+    <library>/manifest.json              the manifest
     <library>/<name>.obj                 one mesh per shape (any format trimesh reads)
     <library>/<name>.visibility.npz      visibility table of non-convex shapes
+    <library>/<name>.proxy.obj           level-of-detail proxy of a big shape (and its
+    <library>/<name>.proxy.visibility.npz  table), :mod:`shapes.library.proxy`
     <library>/.manifest.lock             file lock of writers
 
-``manifest.json``::
-
-    {"format": "space-lightcurves shape library", "version": 1,
-     "shapes": {"<name>": {
-        "mesh": "<name>.obj", "unit": "m" | "km", "sha256": "<hex of the mesh file>",
-        "facets": int, "groups": [str, ...],
-        "materials": {"<group>": {"brdf": str, "params": {str: float},
-                                  "name"?: str, "reference_direction"?: [x, y, z]}},
-        "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
-                    "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
-        "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
-        "shadows"?: "none",
-        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
-        "parts"?: [{"name": str, "groups": [str, ...],
-                    "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
-
-``"shadows": "none"`` marks a non-convex shape added without its table (``add`` with
-``visibility_table=False``): it is not built on first use either, until
-:meth:`ShapeLibrary.rebuild_visibility` builds it (which drops the mark).
-
-``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
-each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
-when loaded; :meth:`ShapeLibrary.load` with ``articulated=True`` returns an
-:class:`~shapes.articulation.ArticulatedModel`.
+The fields of ``manifest.json`` are described in :mod:`shapes.library.manifest`.
 
 For ``"given"`` inertia the tensor and centre of mass are used as stored; for ``"solid"`` and
 ``"shell"`` they are recomputed from the mesh (uniform density, scaled to ``mass`` when
@@ -64,20 +43,14 @@ from shapes.library.manifest import (
     LOCK,
     MANIFEST,
     check_name,
+    entry_files,
     manifest_entry,
-    manifest_field,
+    read_entry_mesh,
     read_manifest,
     swap_in,
     write_manifest,
 )
-from shapes.library.proxy import (
-    PROXY_MIN_FACETS,
-    PROXY_START_FACETS,
-    PROXY_TOLERANCE_MAG,
-    ProxyMeter,
-    choose_proxy,
-    stage_proxy,
-)
+from shapes.library.proxy import PROXY_MIN_FACETS, ProxyMeter, stage_proxy
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
@@ -207,7 +180,7 @@ class ShapeLibrary:
             parts = self.articulation(name)
             model = self.load(name, build_visibility=build_visibility, visibility=visibility)
             return model if parts is None else ArticulatedModel(model, parts)
-        model = self._read_mesh(name, entry, entry, where)
+        model = read_entry_mesh(self.path, name, entry, entry, where)
         if not visibility:
             return model
         if entry.get("visibility"):
@@ -226,38 +199,6 @@ class ShapeLibrary:
         if not self.read_only:
             self._store_table(name, entry["sha256"], table)
         return model.with_visibility(table)
-
-    def _read_mesh(
-        self, name: str, entry: Mapping[str, Any], files: Mapping[str, Any], where: str
-    ) -> FacetModel:
-        """The mesh named by ``files["mesh"]`` (checked against ``files["sha256"]``) with the
-        materials, unit, inertia and provenance of the shape's ``entry``."""
-        mesh_path = self.path / manifest_field(files, "mesh", str, where)
-        if not mesh_path.is_file():
-            raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
-        if file_sha256(mesh_path) != files.get("sha256"):
-            raise ShapeError(
-                f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)"
-            )
-        materials = {
-            group: Material.from_dict(spec, f"{where}, material of group {group!r}")
-            for group, spec in manifest_field(entry, "materials", dict, where).items()
-        }
-        inertia_spec = manifest_field(entry, "inertia", dict, where)
-        source = inertia_spec.get("source")
-        if source not in ("solid", "shell", "given"):
-            raise ShapeError(f"{where}: inertia source must be solid, shell or given")
-        given = source == "given" or files is not entry  # a proxy: the full mesh's inertia
-        return load_mesh(
-            mesh_path,
-            unit=manifest_field(entry, "unit", str, where),
-            name=name,
-            materials=materials,
-            inertia=np.asarray(inertia_spec.get("tensor"), float) if given else source,
-            mass=inertia_spec.get("mass"),
-            center_of_mass=inertia_spec.get("center_of_mass") if given else None,
-            provenance=entry.get("provenance", {}),
-        )
 
     def _read_table(self, files: Mapping[str, Any]) -> VisibilityTable | None:
         """The table named by ``files["visibility"]`` (checked against its checksum)."""
@@ -283,7 +224,7 @@ class ShapeLibrary:
         where = f"{self.manifest_path}: proxy of shape {name!r}"
         if not isinstance(record, dict):
             raise ShapeError(f"{where}: field 'proxy' must be an object, got {record!r}")
-        model = self._read_mesh(name, entry, record, where)
+        model = read_entry_mesh(self.path, name, entry, record, where)
         try:
             table = self._read_table(record)
         except (ShapeError, TableFormatError) as exc:
@@ -564,11 +505,14 @@ class ShapeLibrary:
                 stored = stored.with_visibility(table)
             proxy = None
             if proxy_meter is not None and len(stored.faces) > PROXY_MIN_FACETS:
-                proxy = self._stage_proxy(
-                    name,
+                options = None
+                if table_options is not None:  # the proxy's table: the shape's sampling
+                    options = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+                proxy = stage_proxy(
+                    self.path,
                     stored,
                     proxy_meter,
-                    table_options=table_options,
+                    table_options=options,
                     announce=announce,
                     final=final,
                     staged=staged,
@@ -584,41 +528,13 @@ class ShapeLibrary:
                 if name in manifest["shapes"] and not force:
                     raise ShapeError(f"shape {name!r} already exists in library {self.path}")
                 old = manifest["shapes"].get(name, {})
-                old_files = [self.path / file_name for file_name in _files(old)]
+                old_files = [self.path / file_name for file_name in entry_files(old)]
                 manifest["shapes"][name] = entry
                 swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
             return stored
         finally:
             for path in staged.values():
                 path.unlink(missing_ok=True)
-
-    def _stage_proxy(
-        self,
-        name: str,
-        model: FacetModel,
-        meter: ProxyMeter,
-        *,
-        table_options: Mapping[str, Any] | None,
-        announce: Callable[[str], None] | None,
-        final: dict[str, Path],
-        staged: dict[str, Path],
-    ) -> dict[str, Any] | None:
-        """Choose and stage the level-of-detail proxy of ``model``: its manifest record, or
-        None when no proxy of at most half the facets is accurate enough."""
-        if announce is not None:
-            announce(
-                f"level-of-detail proxy of the {len(model.faces)}-facet mesh (quadric "
-                f"decimation from {PROXY_START_FACETS} facets, doubled until its light curves "
-                f"are within {PROXY_TOLERANCE_MAG} mag rms of the full mesh's)"
-            )
-        options = None
-        if table_options is not None:
-            options = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
-        chosen = choose_proxy(model, meter, table_options=options)
-        if chosen is None:
-            logger.info("%s: no proxy of at most half the facets is accurate enough", name)
-            return None
-        return stage_proxy(self.path, name, *chosen, final=final, staged=staged)
 
     def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
         """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
@@ -652,15 +568,8 @@ class ShapeLibrary:
                 raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
             entry = manifest["shapes"].pop(name)
             self._write_manifest(manifest)
-            for file_name in _files(entry):
+            for file_name in entry_files(entry):
                 (self.path / file_name).unlink(missing_ok=True)
-
-
-def _files(entry: Mapping[str, Any]) -> list[str]:
-    """The file names of a manifest entry: mesh, table, and its proxy's mesh and table."""
-    proxy = entry.get("proxy") or {}
-    names = [entry.get("mesh"), entry.get("visibility"), proxy.get("mesh"), proxy.get("visibility")]
-    return [name for name in names if name]
 
 
 def _articulation(

@@ -188,22 +188,39 @@ def choose_proxy(
 
 def stage_proxy(
     folder: Path,
-    name: str,
-    proxy: FacetModel,
-    error: ProxyError,
+    model: FacetModel,
+    meter: ProxyMeter,
     *,
+    table_options: Mapping[str, Any] | None,
+    announce: Callable[[str], None] | None,
     final: dict[str, Path],
     staged: dict[str, Path],
-) -> dict[str, Any]:
-    """Write a proxy (and its table) under temporary names in ``folder`` for a library
-    transaction; add their final and staged paths to ``final`` and ``staged``.
+) -> dict[str, Any] | None:
+    """Choose the proxy of ``model`` (:func:`choose_proxy`) and write it (and its table)
+    under temporary names in ``folder`` for a library transaction, adding their final and
+    staged paths to ``final`` and ``staged``.
+
+    ``announce``, when given, is called with one line saying what is built.
 
     Returns
     -------
-    dict
+    dict or None
         The manifest's ``proxy`` record: ``mesh``, ``sha256``, ``facets``, ``visibility``
-        (or None), ``visibility_sha256``, and the error record's fields.
+        (or None), ``visibility_sha256``, and the error record's fields; None when no proxy
+        of at most half the facets is accurate enough.
     """
+    if announce is not None:
+        announce(
+            f"level-of-detail proxy of the {len(model.faces)}-facet mesh (quadric "
+            f"decimation from {PROXY_START_FACETS} facets, doubled until its light curves "
+            f"are within {PROXY_TOLERANCE_MAG} mag rms of the full mesh's)"
+        )
+    chosen = choose_proxy(model, meter, table_options=table_options)
+    if chosen is None:
+        logger.info("%s: no proxy of at most half the facets is accurate enough", model.name)
+        return None
+    proxy, error = chosen
+    name = model.name
     final["proxy"] = folder / f"{name}.proxy.obj"
     staged["proxy"] = temp_path(folder, f".{name}.proxy.", ".obj")
     write_obj(proxy, staged["proxy"])

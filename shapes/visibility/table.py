@@ -27,7 +27,7 @@ from array_api_compat import array_namespace
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
 from shapes.files import atomic_write
-from shapes.visibility.cells import facing_flags, partial_cells
+from shapes.visibility.cells import corner_words, facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -38,7 +38,6 @@ DEFAULT_RESOLUTION = 26
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
-_ENTRY_BLOCK = 1 << 20  # cell entries whose words are gathered at a time
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -286,22 +285,15 @@ class VisibilityTable:
             del full_words, front
             count = np.diff(start)[facet]
             entry_word = np.cumsum(count) - count
-            cell_words = np.empty((int(count.sum()), 3), dtype=np.uint64)
-            # the words of each entry's segments at its cell's corners, a block of entries at
-            # a time (the index arrays of all entries at once take several GB at 10⁵ facets)
-            for first in range(0, len(facet), _ENTRY_BLOCK):
-                block = slice(first, first + _ENTRY_BLOCK)
-                n = count[block]
-                row = np.repeat(np.arange(len(n)), n)
-                within = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
-                segment = start[facet[block]][row] + within
-                nodes = corners[cell[block][row]]
-                rows = slice(entry_word[first], entry_word[first] + len(row))
-                np.bitwise_and(
-                    self.bits[nodes, seg["segment_word"][segment, None]],
-                    seg["segment_mask"][segment, None],
-                    out=cell_words[rows],
-                )
+            cell_words = corner_words(
+                self.bits,
+                corners,
+                cell,
+                facet,
+                segment_start=start,
+                segment_word=seg["segment_word"],
+                segment_mask=seg["segment_mask"],
+            )
             self._cache["cells"] = {
                 "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
                 "entry_facet": facet.astype(np.int32),
