@@ -38,8 +38,8 @@ def facing_flags(directions: np.ndarray, normals: np.ndarray) -> np.ndarray:
 def partial_cells(
     full: np.ndarray, front: np.ndarray, corners: np.ndarray, n_facets: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(cell, facet)`` of every facet that faces one of a cell's corners and is not fully
-    visible from all three, in cell then facet order.
+    """``(cell, facet)`` (int32 arrays) of every facet that faces one of a cell's corners and
+    is not fully visible from all three, in cell then facet order.
 
     Parameters
     ----------
@@ -56,8 +56,8 @@ def partial_cells(
         faces = front[c[:, 0]] | front[c[:, 1]] | front[c[:, 2]]
         partial = np.unpackbits(~every & faces, axis=1, bitorder="little")[:, :n_facets]
         cell, facet = np.nonzero(partial)
-        cells.append(cell + first)
-        facets.append(facet)
+        cells.append((cell + first).astype(np.int32))
+        facets.append(facet.astype(np.int32))
     return np.concatenate(cells), np.concatenate(facets)
 
 

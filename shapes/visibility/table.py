@@ -273,18 +273,14 @@ class VisibilityTable:
             start, k = seg["segment_start"], self.n_facets
             full_words = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
             _kernels().full_flags(
-                self.bits,
-                start,
-                seg["segment_word"],
-                seg["segment_mask"],
-                full_words,
+                self.bits, start, seg["segment_word"], seg["segment_mask"], full_words
             )
             corners = self._cell_corners()
             front = facing_flags(self.grid.directions, self.normals)
             cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
             del full_words, front
-            count = np.diff(start)[facet]
-            entry_word = np.cumsum(count) - count
+            entry_word = np.cumsum(np.diff(start)[facet])  # int64
+            entry_word -= np.diff(start)[facet]
             cell_words = corner_words(
                 self.bits,
                 corners,
@@ -296,8 +292,8 @@ class VisibilityTable:
             )
             self._cache["cells"] = {
                 "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
-                "entry_facet": facet.astype(np.int32),
-                "entry_word": entry_word.astype(np.int64),
+                "entry_facet": facet,
+                "entry_word": entry_word,
                 "cell_words": cell_words,
             }
         return self._cache["cells"]
@@ -313,8 +309,8 @@ class VisibilityTable:
         facet = cells["entry_facet"]
         start = cells["cell_start"]
         if np.all(per_facet == 1):  # every facet in one column (a renderer's order): no copies
-            entry_facet, entry_word, step = facet, cells["entry_word"], 0
-            cell_start = start
+            entry_facet, entry_word, cell_start = facet, cells["entry_word"], start
+            column = columns[first_column][facet]
         else:
             count = per_facet[facet]
             source = np.repeat(np.arange(len(facet)), count)
@@ -323,6 +319,7 @@ class VisibilityTable:
             entry_word = np.ascontiguousarray(cells["entry_word"][source])
             entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
             cell_start = np.searchsorted(entry_cell[source], np.arange(len(start)))
+            column = columns[first_column[entry_facet] + step]
         value = np.empty((len(entry_facet), 4))
         _kernels().cell_fractions(
             cells["cell_words"],
@@ -332,7 +329,7 @@ class VisibilityTable:
             seg["segment_weight"],
             value[:, :3],
         )
-        value[:, 3] = columns[first_column[entry_facet] + step]
+        value[:, 3] = column
         return {
             "cell_start": cell_start.astype(np.int64),
             "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
