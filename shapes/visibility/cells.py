@@ -10,10 +10,21 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["corner_words", "facing_flags", "partial_cells"]
+__all__ = ["cell_corners", "corner_words", "facing_flags", "partial_cells"]
 
 _BLOCK_ROWS = 512  # directions or cells per unpacked block
 _ENTRY_BLOCK = 1 << 20  # cell entries whose words are gathered at a time
+
+
+def cell_corners(node_index: np.ndarray) -> np.ndarray:
+    """(cells, 3) corner nodes of the grid's triangles, in the lookup kernels' cell order.
+
+    ``node_index`` : (6, n + 1, n + 1) int, the node of each face's grid point.
+    """
+    ni = node_index
+    lower = np.stack([ni[:, :-1, :-1], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
+    upper = np.stack([ni[:, 1:, 1:], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
+    return np.stack([lower, upper], axis=3).reshape(-1, 3)
 
 
 def facing_flags(directions: np.ndarray, normals: np.ndarray) -> np.ndarray:

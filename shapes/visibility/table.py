@@ -19,6 +19,7 @@ front-facing factors ``max(0, n·L) max(0, n·V)`` the flux carries anyway
 from __future__ import annotations
 
 import os
+import threading
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,7 @@ from array_api_compat import array_namespace
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
 from shapes.files import atomic_write
-from shapes.visibility.cells import corner_words, facing_flags, partial_cells
+from shapes.visibility.cells import cell_corners, corner_words, facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -38,6 +39,7 @@ DEFAULT_RESOLUTION = 26
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_BUILD_LOCK = threading.Lock()
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -212,38 +214,44 @@ class VisibilityTable:
             return self._frozen[id(order)][1]
         key = b"" if order is None else np.asarray(order, np.int64).tobytes()
         if key not in self._lookups:
-            order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
-            if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
-                raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
-            unused = order < 0
-            segments = self._segments()
-            count = np.where(unused, 0, np.diff(segments["segment_start"])[order])
-            first = np.repeat(segments["segment_start"][order], count)
-            step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-            lookup = {
-                "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
-                "segment_word": segments["segment_word"][first + step],
-                "segment_mask": segments["segment_mask"][first + step],
-                "segment_weight": segments["segment_weight"][first + step],
-                # an unused column faces nowhere: never looked up
-                "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
-                "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
-                "rotation": np.ascontiguousarray(self.rotation),
-            }
-            full = np.empty((len(self.grid), -(-len(order) // 64)), dtype=np.uint64)
-            _kernels().full_flags(
-                self.bits,
-                lookup["segment_start"],
-                lookup["segment_word"],
-                lookup["segment_mask"],
-                full,
-            )
-            lookup["full"] = full
-            lookup.update(self._cell_entries(order))
-            self._lookups[key] = lookup
+            with _BUILD_LOCK:  # the threads of one render call share one build
+                if key not in self._lookups:
+                    self._lookups[key] = self._build_lookup(order)
         if frozen:
             self._frozen[id(order)] = (order, self._lookups[key])
         return self._lookups[key]
+
+    def _build_lookup(self, order: np.ndarray | None) -> dict[str, np.ndarray]:
+        """The arrays of :meth:`_lookup` for ``order``."""
+        order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
+        if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
+            raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
+        unused = order < 0
+        segments = self._segments()
+        count = np.where(unused, 0, np.diff(segments["segment_start"])[order])
+        first = np.repeat(segments["segment_start"][order], count)
+        step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        lookup = {
+            "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
+            "segment_word": segments["segment_word"][first + step],
+            "segment_mask": segments["segment_mask"][first + step],
+            "segment_weight": segments["segment_weight"][first + step],
+            # an unused column faces nowhere: never looked up
+            "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
+            "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
+            "rotation": np.ascontiguousarray(self.rotation),
+        }
+        full = np.empty((len(self.grid), -(-len(order) // 64)), dtype=np.uint64)
+        _kernels().full_flags(
+            self.bits,
+            lookup["segment_start"],
+            lookup["segment_word"],
+            lookup["segment_mask"],
+            full,
+        )
+        lookup["full"] = full
+        lookup.update(self._cell_entries(order))
+        return lookup
 
     def _segments(self) -> dict[str, np.ndarray]:
         """The segments sorted by facet (``segment_start`` per facet), with their bit masks."""
@@ -275,7 +283,7 @@ class VisibilityTable:
             _kernels().full_flags(
                 self.bits, start, seg["segment_word"], seg["segment_mask"], full_words
             )
-            corners = self._cell_corners()
+            corners = cell_corners(self.grid.node_index)
             front = facing_flags(self.grid.directions, self.normals)
             cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
             del full_words, front
@@ -348,13 +356,6 @@ class VisibilityTable:
             length == 64, np.uint64(2**64 - 1), (np.uint64(1) << (length % np.uint64(64))) - 1
         )
         return ones.astype(np.uint64) << self.layout["segment_shift"].astype(np.uint64)
-
-    def _cell_corners(self) -> np.ndarray:
-        """(cells, 3) corner nodes of the grid's triangles, in the kernels' cell order."""
-        ni = self.grid.node_index
-        lower = np.stack([ni[:, :-1, :-1], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
-        upper = np.stack([ni[:, 1:, 1:], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
-        return np.stack([lower, upper], axis=3).reshape(-1, 3)
 
     def interpolate(self, directions: Any) -> Any:
         """Visible fractions of all effective facets for arbitrary body-frame directions.
