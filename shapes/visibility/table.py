@@ -27,7 +27,7 @@ from array_api_compat import array_namespace
 
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
-from shapes.files import atomic_write
+from shapes.files import write_npz
 from shapes.visibility.cells import cell_corners, corner_words, facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
@@ -509,15 +509,16 @@ class VisibilityTable:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the table atomically as a compressed ``.npz`` (format :data:`FORMAT_VERSION`).
+        """Write the table atomically as a compressed ``.npz`` (format :data:`FORMAT_VERSION`;
+        zlib level 1, :func:`shapes.files.write_npz`).
 
         The bits are stored direction-major per word (``bits.T``), which keeps neighbouring
         directions' words together and compresses best.
         """
         lay = self.layout
-        with atomic_write(path, "wb") as handle:
-            np.savez_compressed(
-                handle,
+        write_npz(
+            path,
+            dict(
                 format_version=np.int64(FORMAT_VERSION),
                 resolution=np.int64(self.resolution),
                 structure=np.str_(self.structure),
@@ -532,7 +533,8 @@ class VisibilityTable:
                 segment_shift=lay["segment_shift"].astype(np.uint8),
                 segment_length=lay["segment_length"].astype(np.uint8),
                 segment_weight=lay["segment_weight"],
-            )
+            ),
+        )
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> VisibilityTable:
