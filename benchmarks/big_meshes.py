@@ -129,13 +129,20 @@ def add_with_proxy(name: str, write: Callable[[Path], str], library: Path, work:
     unit = write(mesh)
     add = [*CLI, "shapes", "add", name, str(mesh), "--units", unit, "--library", str(library)]
     seconds, peak = run([*add, *REGOLITH, "-q"])
+    return {
+        "add_seconds": round(seconds, 1),
+        "add_peak_mib": round(peak),
+        **proxy_row(library, name),
+    }
+
+
+def proxy_row(library: Path, name: str) -> dict:
+    """The facets of a shape and its proxy's record, from the library's manifest."""
     entry = shapes.ShapeLibrary(library).info(name)
     proxy = entry.get("proxy") or {}
     return {
         "shape": name,
         "facets": entry["facets"],
-        "add_seconds": round(seconds, 1),
-        "add_peak_mib": round(peak),
         "proxy_facets": proxy.get("facets"),
         "proxy_rms_mag": proxy.get("rms_mag"),
         "proxy_max_mag": proxy.get("max_mag"),
