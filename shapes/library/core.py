@@ -291,9 +291,11 @@ class ShapeLibrary:
         return self._rebuild(name, model, entry, self.path / old if old else None, progress)
 
     def validate(self, name: str) -> FacetModel:
-        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
+        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes,
+        and its level-of-detail proxy's files when it has one."""
         model = self.load(name, build_visibility=False)
         self.articulation(name)  # parts, when present, must fit the mesh groups
+        self.load_proxy(name)
         try:
             validate(model)
         except ShapeError as exc:

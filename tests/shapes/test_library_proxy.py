@@ -78,5 +78,7 @@ def test_the_library_stores_and_checks_the_proxy(tmp_path, monkeypatch):
     proxy_file.write_text(proxy_file.read_text() + "\n")
     with pytest.raises(ShapeError, match=r"proxy of shape 'ball'.*sha256 mismatch"):
         library.load_proxy("ball")
+    with pytest.raises(ShapeError, match=r"proxy of shape 'ball'.*sha256 mismatch"):
+        library.validate("ball")
     library.remove("ball")
     assert not proxy_file.exists()
