@@ -182,7 +182,7 @@ def candidate_model(
         ``proxy_rms_mag`` and ``proxy_max_mag`` (None without a proxy), ``noise_mag``.
     """
     entry = library.info(name)
-    stored = entry.get("proxy")
+    stored = library.proxy_info(name)
     record: dict[str, Any] = {
         "name": name,
         "proxy": False,

@@ -45,6 +45,7 @@ from shapes.library.manifest import (
     check_name,
     entry_files,
     manifest_entry,
+    manifest_field,
     read_entry_mesh,
     read_manifest,
     swap_in,
@@ -210,25 +211,35 @@ class ShapeLibrary:
             raise ShapeError(f"visibility table {table_name} missing or changed")
         return VisibilityTable.load(table_path)
 
+    def proxy_info(self, name: str) -> dict[str, Any] | None:
+        """The ``proxy`` record of a shape, its fields checked (None without a proxy)."""
+        record = self.info(check_name(name)).get("proxy")
+        where = f"{self.manifest_path}: proxy of shape {name!r}"
+        if record is not None and not isinstance(record, dict):
+            raise ShapeError(f"{where}: field 'proxy' must be an object, got {record!r}")
+        fields = (("facets", int), ("rms_mag", float), ("max_mag", float), ("shadows", str))
+        for key, kind in fields if record is not None else ():
+            manifest_field(record, key, kind, where)
+        return record
+
     def load_proxy(self, name: str) -> FacetModel | None:
         """The level-of-detail proxy of a shape (:mod:`shapes.library.proxy`) with its own
         visibility table, or None for a shape without one.
 
         Its materials, unit and mass properties are the full shape's; its error against the
-        full shape is :meth:`info`'s ``proxy`` record.
+        full shape is the :meth:`proxy_info` record.
         """
-        entry = self.info(check_name(name))
-        record = entry.get("proxy")
+        record = self.proxy_info(name)
         if record is None:
             return None
         where = f"{self.manifest_path}: proxy of shape {name!r}"
-        if not isinstance(record, dict):
-            raise ShapeError(f"{where}: field 'proxy' must be an object, got {record!r}")
-        model = read_entry_mesh(self.path, name, entry, record, where)
+        model = read_entry_mesh(self.path, name, self.info(name), record, where)
         try:
             table = self._read_table(record)
         except (ShapeError, TableFormatError) as exc:
-            raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
+            raise ShapeError(
+                f"{where}: {exc}: add the shape again (--force) to rebuild it"
+            ) from None
         return model if table is None else model.with_visibility(table)
 
     def missing_table(self, name: str) -> str:

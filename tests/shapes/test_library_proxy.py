@@ -4,6 +4,8 @@ the shape, loads it back, and refuses a changed proxy file."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -82,3 +84,15 @@ def test_the_library_stores_and_checks_the_proxy(tmp_path, monkeypatch):
         library.validate("ball")
     library.remove("ball")
     assert not proxy_file.exists()
+
+
+def test_a_malformed_proxy_record_is_named(tmp_path, monkeypatch):
+    monkeypatch.setattr(library_core, "PROXY_MIN_FACETS", 1000)
+    library = ShapeLibrary(tmp_path / "lib")
+    library.add_model("ball", primitives.icosphere(1.0, subdivisions=4), proxy_meter=_meter)
+    manifest = library.path / "manifest.json"
+    data = json.loads(manifest.read_text())
+    data["shapes"]["ball"]["proxy"]["rms_mag"] = "small"
+    manifest.write_text(json.dumps(data))
+    with pytest.raises(ShapeError, match=r"proxy of shape 'ball': field 'rms_mag' must be a"):
+        library.proxy_info("ball")
