@@ -13,7 +13,8 @@ Summary keys (the contract of ``docs/inversion.md``, "Result files"): ``input``,
 of the last measurement), ``quaternion``, ``omega_rad_s``, ``attitude_sigma_deg``,
 ``omega_sigma_rad_s``, ``modes``, ``residual_rms_mag``, ``model_error_mag``,
 ``rejected_fraction``, ``consistent``, ``parameters`` (name → ``{"value", "sigma"}``),
-``n_measurements``, ``runtime_s`` and, with ``modes``, ``attitude_mode``,
+``n_measurements``, ``runtime_s``, ``shape_model`` (the model each candidate was rendered
+with: :func:`candidate_model`) and, with ``modes``, ``attitude_mode``,
 ``attitude_mode_probability``, ``attitude_offsets_deg`` (None without).
 """
 
@@ -33,8 +34,16 @@ from lightcurve.io.observations import iso_epochs
 
 if TYPE_CHECKING:
     from lightcurve.inversion.options import InversionOptions
+    from shapes import FacetModel, ShapeLibrary
 
-__all__ = ["SUMMARY_KEYS", "InvertJob", "check_request", "invert_file", "resolve_shapes"]
+__all__ = [
+    "SUMMARY_KEYS",
+    "InvertJob",
+    "candidate_model",
+    "check_request",
+    "invert_file",
+    "resolve_shapes",
+]
 
 SUMMARY_KEYS = (
     "input",
@@ -57,6 +66,7 @@ SUMMARY_KEYS = (
     "parameters",
     "n_measurements",
     "runtime_s",
+    "shape_model",
     "attitude_mode",
     "attitude_mode_probability",
     "attitude_offsets_deg",
@@ -126,6 +136,8 @@ class InvertJob:
         Also weigh stabilised attitude profiles against tumbling.
     drop_bad_rows : bool
         Drop invalid rows of an input instead of failing it.
+    full_mesh : bool
+        Render every candidate with its full mesh, never its level-of-detail proxy.
 
     The prior, bound and particle count left None keep the defaults of
     :func:`lightcurve.inversion.invert`. Sequences are stored as tuples.
@@ -143,12 +155,58 @@ class InvertJob:
     seed: int = 0
     modes: bool = False
     drop_bad_rows: bool = False
+    full_mesh: bool = False
 
     def __post_init__(self) -> None:
         for name in ("shape_names", "q0", "omega0_rad_s"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, tuple):
                 object.__setattr__(self, name, tuple(_items(value)))
+
+
+def candidate_model(
+    library: ShapeLibrary, name: str, noise_mag: float, *, full_mesh: bool = False
+) -> tuple[FacetModel, dict[str, Any]]:
+    """A candidate shape as the inversion renders it, and the record saying which model.
+
+    The shape's level-of-detail proxy (:mod:`shapes.library.proxy`) stands in for it when
+    the proxy's stored rms light-curve error is below the data's noise ``noise_mag`` and was
+    measured with the shadowing the full shape renders with (its table, or none for a convex
+    shape); ``full_mesh`` forces the full shape.
+
+    Returns
+    -------
+    model : FacetModel
+    record : dict
+        ``name``, ``proxy`` (bool), ``n_facets`` (of the model used), ``full_facets``,
+        ``proxy_rms_mag`` and ``proxy_max_mag`` (None without a proxy), ``noise_mag``.
+    """
+    entry = library.info(name)
+    stored = library.proxy_info(name)
+    record: dict[str, Any] = {
+        "name": name,
+        "proxy": False,
+        "n_facets": entry.get("facets"),
+        "full_facets": entry.get("facets"),
+        "proxy_rms_mag": None if stored is None else stored["rms_mag"],
+        "proxy_max_mag": None if stored is None else stored["max_mag"],
+        "noise_mag": noise_mag,
+    }
+    if entry.get("visibility"):
+        full_shadows = "table"
+    else:  # a non-convex shape added without its table is ray-cast
+        full_shadows = "exact" if entry.get("shadows") == "none" else "none"
+    if (
+        stored is not None
+        and not full_mesh
+        and stored["rms_mag"] < noise_mag
+        and stored["shadows"] == full_shadows
+    ):
+        proxy = library.load_proxy(name)
+        if proxy is not None:
+            record.update(proxy=True, n_facets=len(proxy.faces))
+            return proxy, record
+    return library.load(name), record
 
 
 def _items(value: Sequence[Any] | Any) -> list[Any]:
@@ -224,6 +282,12 @@ def invert_file(
     observations = io.read(input_path, drop_bad_rows=job.drop_bad_rows)
     lib = get_library(job.library)
     declared = observations.meta.get("shape")
+    errors = observations.magnitude_errors if observations.has_magnitudes else np.zeros(0)
+    noise = float(np.median(errors)) if len(errors) else 0.0
+
+    def load(name: str) -> tuple[FacetModel, dict[str, Any]]:
+        return candidate_model(lib, name, noise, full_mesh=job.full_mesh)
+
     if job.shape_names is None:
         if declared is None:
             raise ValueError(
@@ -231,11 +295,12 @@ def invert_file(
                 "none of --shape, --shapes, --all-shapes was given"
             )
         try:
-            candidates = {declared: lib.load(declared)}
+            loaded = {declared: load(declared)}
         except ValueError as exc:
             raise ValueError(f"{input_path}: header 'shape: {declared}': {exc}") from None
     else:
-        candidates = {name: lib.load(name) for name in job.shape_names}
+        loaded = {name: load(name) for name in job.shape_names}
+    candidates = {name: model for name, (model, _) in loaded.items()}
     result = invert(
         observations,
         candidates,
@@ -278,5 +343,7 @@ def invert_file(
         "n_measurements": int(result.n_measurements),
         "dropped_rows": len(observations.dropped),
         "notes": list(getattr(result, "notes", [])),
+        "shape_model": loaded[result.shape][1] if result.shape in loaded else None,
+        "candidate_models": {name: record for name, (_, record) in loaded.items()},
         **(result.attitude_mode or dict.fromkeys(SUMMARY_KEYS[-3:])),
     }

@@ -18,8 +18,11 @@ mmae; summary.json then holds them under 'parameters' with their 1-sigma, the rm
 error ('model_error_mag'), the fraction of measurements the filters' gate rejected and
 whether the candidate is consistent with the data. --modes adds the attitude mode
 (stabilised profile or tumbling, its probability and the fitted offsets;
-docs/inversion.md). --workers runs inputs in parallel processes; --scheduler sends the
-same work to a Dask distributed cluster (workers must see the same file system).
+docs/inversion.md). A big shape is rendered through its level-of-detail proxy when the
+proxy's light-curve error is below the data's noise (--full-mesh: never); summary key
+'shape_model' names the model used. --workers runs inputs in parallel processes;
+--scheduler sends the same work to a Dask distributed cluster (workers must see the same
+file system).
 """
 
 from __future__ import annotations
@@ -157,6 +160,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="Dask distributed scheduler address, e.g. tcp://host:8786 (default: local processes)",
     )
+    parser.add_argument(
+        "--full-mesh",
+        action="store_true",
+        help="render every candidate with its full mesh (default: a shape's level-of-detail "
+        "proxy when its stored light-curve error is below the file's median mag_err; "
+        "summary key shape_model says which)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="redo finished inputs")
     parser.add_argument(
         "--drop-bad-rows",
@@ -197,6 +207,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         modes=args.modes,
         drop_bad_rows=args.drop_bad_rows,
+        full_mesh=args.full_mesh,
     )
     # Options left unset keep the library's defaults.
     tuning = {

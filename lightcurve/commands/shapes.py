@@ -18,6 +18,7 @@ import numpy as np
 import brdf
 import shapes
 from lightcurve.commands._args import brdf_parameters, show_progress
+from shapes.library.proxy import PROXY_MIN_FACETS
 
 if TYPE_CHECKING:
     from shapes.articulation import ArticulatedModel
@@ -89,6 +90,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "facets); none: skip it (shadows then ray-cast, or off; `shapes rebuild NAME` builds "
         "it later)",
     )
+    p.add_argument(
+        "--proxy",
+        choices=("auto", "none"),
+        default="auto",
+        help=f"auto: a mesh of more than {PROXY_MIN_FACETS} facets also gets a level-of-detail "
+        "proxy for the inversions (quadric decimation, its light-curve error measured over "
+        "10⁴ random geometries; tens of seconds); none: skip it",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing shape")
     p = action("remove", "remove a shape")
     p.add_argument("name", help="shape name")
@@ -145,7 +154,7 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         print(
             f"# (no library there yet: `lightcurve shapes add NAME MESH --library {library.path}`)"
         )
-    rows = [("name", "facets", "unit", "groups", "self-shadowing", "source")]
+    rows = [("name", "facets", "unit", "groups", "self-shadowing", "proxy", "source")]
     for name in names:
         entry = library.info(name)
         provenance = entry.get("provenance", {})
@@ -156,6 +165,7 @@ def _list(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
                 str(entry.get("unit", "?")),
                 ",".join(entry.get("groups", [])),
                 _self_shadowing(entry),
+                _proxy_column(entry.get("proxy")),
                 str(provenance.get("source", "")),
             )
         )
@@ -170,6 +180,23 @@ def _self_shadowing(entry: dict[str, Any]) -> str:
     if entry.get("visibility"):
         return "table"
     return "none (skipped: shapes rebuild)" if entry.get("shadows") else "none (convex)"
+
+
+def _proxy_column(proxy: dict[str, Any] | None) -> str:
+    """The ``list`` column: the proxy's facets and rms error, or ``-``."""
+    if proxy is None:
+        return "-"
+    return f"{proxy['facets']} ({proxy['rms_mag']:.4f} mag rms)"
+
+
+def _proxy_text(proxy: dict[str, Any]) -> str:
+    """One line on a proxy: facets, error and how it was measured."""
+    return (
+        f"{proxy['facets']} facets, light-curve error {proxy['rms_mag']:.4f} mag rms "
+        f"(max {proxy['max_mag']:.3f}) over {proxy['geometries']} random geometries "
+        f"(seed {proxy['seed']}, phase ≤ {proxy['max_phase_deg']:g}°, shadows "
+        f"{proxy['shadows']})"
+    )
 
 
 #: Entries smaller than this fraction of the largest printed as 0 (round-off, not data).
@@ -214,6 +241,8 @@ def _show(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     print(f"  principal moments: {np.array2string(model.principal_moments, precision=6)} kg m²")
     print("  principal axes (columns):")
     print(_matrix(model.principal_axes))
+    if entry.get("proxy") is not None:
+        print(f"  level-of-detail proxy: {_proxy_text(entry['proxy'])}")
     articulation = library.articulation(args.name)
     if articulation is not None:
         print(
@@ -273,6 +302,8 @@ def _material(kind: str, items: Sequence[str]) -> shapes.Material:
 
 
 def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    from lightcurve.photometry.proxy_error import ProxyErrorMeter
+
     if args.param and not args.brdf:
         raise shapes.ShapeError("--param needs --brdf KIND")
     material = _material(args.brdf, args.param) if args.brdf else None
@@ -282,8 +313,9 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
     provenance = {k: v for k, v in (("source", args.source), ("license", args.license)) if v}
 
     def announce(line: str) -> None:
+        skip = "--proxy none" if line.startswith("level-of-detail") else "--shadows none"
         if not args.quiet:
-            print(f"building the {line} (--shadows none skips it)", file=sys.stderr, flush=True)
+            print(f"building the {line} ({skip} skips it)", file=sys.stderr, flush=True)
 
     model = library.add(
         args.name,
@@ -298,6 +330,7 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         parts=_read_parts(args.parts) if args.parts else None,
         visibility_table=args.shadows == "table",
         announce=announce,
+        proxy_meter=ProxyErrorMeter() if args.proxy == "auto" else None,
     )
     if not args.quiet:
         print(
@@ -311,6 +344,9 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
             )
             + (", parts " + ", ".join(library.articulation(args.name).names) if args.parts else "")
         )
+        proxy = library.info(args.name).get("proxy")
+        if proxy is not None:
+            print(f"proxy of {args.name}: {_proxy_text(proxy)}")
     return 0
 
 

@@ -32,6 +32,8 @@ Modules
 - :mod:`~lightcurve.photometry.bands` — the Sun's magnitude per photometric band and system.
 - :mod:`~lightcurve.photometry.earthshine` — the light of the sunlit Earth on an
   Earth-orbiting object.
+- :mod:`~lightcurve.photometry.proxy_error` — the light-curve error of a shape's
+  level-of-detail proxy against its full mesh over random geometries.
 - :mod:`~lightcurve.photometry.calibration` — a shape's photometric parameters fitted to
   observations with known attitudes, cross-validated by night.
 """

@@ -4,6 +4,8 @@ Modules
 -------
 - :mod:`~shapes.library.core` — :class:`ShapeLibrary`: loading, validating, adding and
   removing shapes; :func:`get_library`, :func:`builtin_library_path`.
+- :mod:`~shapes.library.proxy` — level-of-detail proxies: quadric decimation of a big mesh
+  until its light-curve error (measured by the caller) is within tolerance; staging.
 - :mod:`~shapes.library.manifest` — the manifest: names, format, reading and writing,
   entries, the staged-rename transaction.
 - :mod:`~shapes.library.builtin` — builds the built-in library (``shapes/data``) from the

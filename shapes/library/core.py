@@ -2,35 +2,14 @@
 
 Layout::
 
-    <library>/manifest.json              the manifest (below)
+    <library>/manifest.json              the manifest
     <library>/<name>.obj                 one mesh per shape (any format trimesh reads)
     <library>/<name>.visibility.npz      visibility table of non-convex shapes
+    <library>/<name>.proxy.obj           level-of-detail proxy of a big shape (and its
+    <library>/<name>.proxy.visibility.npz  table), :mod:`shapes.library.proxy`
     <library>/.manifest.lock             file lock of writers
 
-``manifest.json``::
-
-    {"format": "space-lightcurves shape library", "version": 1,
-     "shapes": {"<name>": {
-        "mesh": "<name>.obj", "unit": "m" | "km", "sha256": "<hex of the mesh file>",
-        "facets": int, "groups": [str, ...],
-        "materials": {"<group>": {"brdf": str, "params": {str: float},
-                                  "name"?: str, "reference_direction"?: [x, y, z]}},
-        "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
-                    "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
-        "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
-        "shadows"?: "none",
-        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
-        "parts"?: [{"name": str, "groups": [str, ...],
-                    "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
-
-``"shadows": "none"`` marks a non-convex shape added without its table (``add`` with
-``visibility_table=False``): it is not built on first use either, until
-:meth:`ShapeLibrary.rebuild_visibility` builds it (which drops the mark).
-
-``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
-each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
-when loaded; :meth:`ShapeLibrary.load` with ``articulated=True`` returns an
-:class:`~shapes.articulation.ArticulatedModel`.
+The fields of ``manifest.json`` are described in :mod:`shapes.library.manifest`.
 
 For ``"given"`` inertia the tensor and centre of mass are used as stored; for ``"solid"`` and
 ``"shell"`` they are recomputed from the mesh (uniform density, scaled to ``mass`` when
@@ -64,12 +43,15 @@ from shapes.library.manifest import (
     LOCK,
     MANIFEST,
     check_name,
+    entry_files,
     manifest_entry,
     manifest_field,
+    read_entry_mesh,
     read_manifest,
     swap_in,
     write_manifest,
 )
+from shapes.library.proxy import PROXY_MIN_FACETS, ProxyMeter, stage_proxy
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
@@ -199,47 +181,17 @@ class ShapeLibrary:
             parts = self.articulation(name)
             model = self.load(name, build_visibility=build_visibility, visibility=visibility)
             return model if parts is None else ArticulatedModel(model, parts)
-        mesh_path = self.path / manifest_field(entry, "mesh", str, where)
-        if not mesh_path.is_file():
-            raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
-        if file_sha256(mesh_path) != entry.get("sha256"):
-            raise ShapeError(
-                f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)"
-            )
-        materials = {
-            group: Material.from_dict(spec, f"{where}, material of group {group!r}")
-            for group, spec in manifest_field(entry, "materials", dict, where).items()
-        }
-        inertia_spec = manifest_field(entry, "inertia", dict, where)
-        source = inertia_spec.get("source")
-        if source not in ("solid", "shell", "given"):
-            raise ShapeError(f"{where}: inertia source must be solid, shell or given")
-        model = load_mesh(
-            mesh_path,
-            unit=manifest_field(entry, "unit", str, where),
-            name=name,
-            materials=materials,
-            inertia=np.asarray(inertia_spec.get("tensor"), float) if source == "given" else source,
-            mass=inertia_spec.get("mass"),
-            center_of_mass=inertia_spec.get("center_of_mass") if source == "given" else None,
-            provenance=entry.get("provenance", {}),
-        )
-        table_name = entry.get("visibility")
+        model = read_entry_mesh(self.path, name, entry, entry, where)
         if not visibility:
             return model
-        if table_name:
-            table_path = self.path / table_name
-            if not table_path.is_file() or file_sha256(table_path) != entry.get(
-                "visibility_sha256"
-            ):
-                raise ShapeError(f"{where}: visibility table {table_name} missing or changed")
+        if entry.get("visibility"):
             try:
-                return model.with_visibility(VisibilityTable.load(table_path))
+                return model.with_visibility(self._read_table(entry))
             except TableFormatError as exc:
                 if self.read_only or not build_visibility:
                     raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
                 logger.warning("%s: %s; rebuilding it", where, exc)
-                return self._rebuild(name, model, entry, table_path)
+                return self._rebuild(name, model, entry, self.path / entry["visibility"])
             except ShapeError as exc:
                 raise ShapeError(f"{where}: {exc}") from None
         if not build_visibility or model.is_convex or entry.get("shadows") == "none":
@@ -248,6 +200,47 @@ class ShapeLibrary:
         if not self.read_only:
             self._store_table(name, entry["sha256"], table)
         return model.with_visibility(table)
+
+    def _read_table(self, files: Mapping[str, Any]) -> VisibilityTable | None:
+        """The table named by ``files["visibility"]`` (checked against its checksum)."""
+        table_name = files.get("visibility")
+        if not table_name:
+            return None
+        table_path = self.path / table_name
+        if not table_path.is_file() or file_sha256(table_path) != files.get("visibility_sha256"):
+            raise ShapeError(f"visibility table {table_name} missing or changed")
+        return VisibilityTable.load(table_path)
+
+    def proxy_info(self, name: str) -> dict[str, Any] | None:
+        """The ``proxy`` record of a shape, its fields checked (None without a proxy)."""
+        record = self.info(check_name(name)).get("proxy")
+        where = f"{self.manifest_path}: proxy of shape {name!r}"
+        if record is not None and not isinstance(record, dict):
+            raise ShapeError(f"{where}: field 'proxy' must be an object, got {record!r}")
+        fields = (("facets", int), ("rms_mag", float), ("max_mag", float), ("shadows", str))
+        for key, kind in fields if record is not None else ():
+            manifest_field(record, key, kind, where)
+        return record
+
+    def load_proxy(self, name: str) -> FacetModel | None:
+        """The level-of-detail proxy of a shape (:mod:`shapes.library.proxy`) with its own
+        visibility table, or None for a shape without one.
+
+        Its materials, unit and mass properties are the full shape's; its error against the
+        full shape is the :meth:`proxy_info` record.
+        """
+        record = self.proxy_info(name)
+        if record is None:
+            return None
+        where = f"{self.manifest_path}: proxy of shape {name!r}"
+        model = read_entry_mesh(self.path, name, self.info(name), record, where)
+        try:
+            table = self._read_table(record)
+        except (ShapeError, TableFormatError) as exc:
+            raise ShapeError(
+                f"{where}: {exc}: add the shape again (--force) to rebuild it"
+            ) from None
+        return model if table is None else model.with_visibility(table)
 
     def missing_table(self, name: str) -> str:
         """One line on a non-convex shape without a visibility table and how to build it."""
@@ -309,9 +302,11 @@ class ShapeLibrary:
         return self._rebuild(name, model, entry, self.path / old if old else None, progress)
 
     def validate(self, name: str) -> FacetModel:
-        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes."""
+        """Check one shape: checksum, mesh validity, materials, table of non-convex shapes,
+        and its level-of-detail proxy's files when it has one."""
         model = self.load(name, build_visibility=False)
         self.articulation(name)  # parts, when present, must fit the mesh groups
+        self.load_proxy(name)
         try:
             validate(model)
         except ShapeError as exc:
@@ -356,6 +351,7 @@ class ShapeLibrary:
         progress: bool = False,
         visibility_table: bool = True,
         announce: Callable[[str], None] | None = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
         """Add a shape from a mesh file.
 
@@ -386,7 +382,13 @@ class ShapeLibrary:
             then ray-cast its shadows or skip them, and :meth:`rebuild_visibility` builds it.
         announce : callable, optional
             Called with one line saying what table is built and how long it should take,
-            before the build starts.
+            before the build starts (and one line before the proxy is built).
+        proxy_meter : callable, optional
+            ``proxy_meter(model, proxy)`` → a proxy's light-curve error record (e.g.
+            :class:`lightcurve.photometry.proxy_error.ProxyErrorMeter`): a shape of more than
+            :data:`~shapes.library.proxy.PROXY_MIN_FACETS` facets then gets a
+            level-of-detail proxy (:mod:`shapes.library.proxy`), stored with it under the
+            entry's ``proxy`` record. None: no proxy.
 
         Returns
         -------
@@ -419,6 +421,7 @@ class ShapeLibrary:
             table_options=table_options,
             articulation=articulation,
             announce=announce,
+            proxy_meter=proxy_meter,
         )
 
     def add_model(
@@ -432,10 +435,11 @@ class ShapeLibrary:
         samples: int = DEFAULT_SAMPLES,
         spacing: float = DEFAULT_SPACING,
         parts: Any = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
         """Add an in-memory model (e.g. a primitive); it is written as a grouped OBJ.
 
-        ``parts`` as in :meth:`add`.
+        ``parts`` and ``proxy_meter`` as in :meth:`add`.
         """
         self._check_writable()
         check_name(name)
@@ -452,6 +456,7 @@ class ShapeLibrary:
             verbatim=None,
             table_options=table_options,
             articulation=articulation,
+            proxy_meter=proxy_meter,
         )
 
     def _check_free(self, name: str, force: bool) -> None:
@@ -471,9 +476,10 @@ class ShapeLibrary:
         table_options: dict[str, Any] | None,
         articulation: Articulation | None = None,
         announce: Callable[[str], None] | None = None,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
-        """Write mesh (+ table) under temporary names, then swap them in under the lock
-        (``table_options`` None: no table for a non-convex shape)."""
+        """Write mesh (+ table, + proxy) under temporary names, then swap them in under the
+        lock (``table_options`` None: no table for a non-convex shape)."""
         self.path.mkdir(parents=True, exist_ok=True)
         suffix = verbatim.suffix.lower() if verbatim is not None else ".obj"
         final = {"mesh": self.path / f"{name}{suffix}"}
@@ -510,7 +516,23 @@ class ShapeLibrary:
                 staged["visibility"] = temp_path(self.path, f".{name}.", ".npz")
                 table.save(staged["visibility"])
                 stored = stored.with_visibility(table)
+            proxy = None
+            if proxy_meter is not None and len(stored.faces) > PROXY_MIN_FACETS:
+                options = None
+                if table_options is not None:  # the proxy's table: the shape's sampling
+                    options = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+                proxy = stage_proxy(
+                    self.path,
+                    stored,
+                    proxy_meter,
+                    table_options=options,
+                    announce=announce,
+                    final=final,
+                    staged=staged,
+                )
             entry = manifest_entry(name, stored, final, staged, provenance)
+            if proxy is not None:
+                entry["proxy"] = proxy
             if table_options is None and not stored.is_convex:
                 entry["shadows"] = "none"
             if articulation is not None:
@@ -519,7 +541,7 @@ class ShapeLibrary:
                 if name in manifest["shapes"] and not force:
                     raise ShapeError(f"shape {name!r} already exists in library {self.path}")
                 old = manifest["shapes"].get(name, {})
-                old_files = [self.path / old[k] for k in ("mesh", "visibility") if old.get(k)]
+                old_files = [self.path / file_name for file_name in entry_files(old)]
                 manifest["shapes"][name] = entry
                 swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
             return stored
@@ -559,9 +581,8 @@ class ShapeLibrary:
                 raise ShapeError(f"no shape {name!r} in library {self.path} (shapes: {known})")
             entry = manifest["shapes"].pop(name)
             self._write_manifest(manifest)
-            for key in ("mesh", "visibility"):
-                if entry.get(key):
-                    (self.path / entry[key]).unlink(missing_ok=True)
+            for file_name in entry_files(entry):
+                (self.path / file_name).unlink(missing_ok=True)
 
 
 def _articulation(

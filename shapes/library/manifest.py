@@ -1,7 +1,38 @@
 """The manifest of a shape library: names, format, reading, entries and atomic updates.
 
-The layout and the manifest's fields are described in :mod:`shapes.library`, whose
-:class:`~shapes.library.ShapeLibrary` is the one user of this module. Updates are
+The folder's layout is described in :mod:`shapes.library.core`, whose
+:class:`~shapes.library.ShapeLibrary` is the one user of this module.
+
+``manifest.json``::
+
+    {"format": "space-lightcurves shape library", "version": 1,
+     "shapes": {"<name>": {
+        "mesh": "<name>.obj", "unit": "m" | "km", "sha256": "<hex of the mesh file>",
+        "facets": int, "groups": [str, ...],
+        "materials": {"<group>": {"brdf": str, "params": {str: float},
+                                  "name"?: str, "reference_direction"?: [x, y, z]}},
+        "inertia": {"source": "solid" | "shell" | "given", "mass"?: kg,
+                    "tensor": 3×3 kg m² about the centre of mass, "center_of_mass": [m]},
+        "visibility": "<name>.visibility.npz" | null, "visibility_sha256"?: str,
+        "shadows"?: "none",
+        "proxy"?: {"mesh": "<name>.proxy.obj", "sha256": str, "facets": int,
+                   "visibility": "<name>.proxy.visibility.npz" | null,
+                   "visibility_sha256"?: str, "rms_mag": float, "max_mag": float,
+                   "geometries": int, "seed": int, "max_phase_deg": float,
+                   "shadows": "table" | "none"},
+        "provenance": {"source": str, "license": str, "added": "YYYY-MM-DD", ...},
+        "parts"?: [{"name": str, "groups": [str, ...],
+                    "joint": {"kind": "fixed" | "sun_tracking" | "scheduled", ...}}, ...]}}}
+
+``"shadows": "none"`` marks a non-convex shape added without its table (``add`` with
+``visibility_table=False``): it is not built on first use either, until
+:meth:`ShapeLibrary.rebuild_visibility` builds it (which drops the mark).
+
+``parts`` (optional) makes the shape articulated: named rigid parts made of mesh groups,
+each on a one-axis joint (:mod:`shapes.articulation`). They are validated when added and
+when loaded; :meth:`ShapeLibrary.load` with ``articulated=True`` returns an
+:class:`~shapes.articulation.ArticulatedModel`.
+ Updates are
 transactions: files are staged under temporary names, renamed into place with the old
 files kept as backups, and the manifest written last; a failure restores everything.
 """
@@ -20,6 +51,8 @@ import numpy as np
 
 from shapes.errors import ShapeError
 from shapes.files import atomic_write, file_sha256
+from shapes.io import load as load_mesh
+from shapes.material import Material
 from shapes.model import FacetModel
 
 __all__ = [
@@ -28,8 +61,10 @@ __all__ = [
     "MANIFEST",
     "VERSION",
     "check_name",
+    "entry_files",
     "manifest_entry",
     "manifest_field",
+    "read_entry_mesh",
     "read_manifest",
     "swap_in",
     "write_manifest",
@@ -90,12 +125,57 @@ def write_manifest(folder: Path, manifest: dict[str, Any]) -> None:
         handle.write(json.dumps(manifest, indent=2) + "\n")
 
 
+def entry_files(entry: Mapping[str, Any]) -> list[str]:
+    """The file names of a manifest entry: mesh, table, and its proxy's mesh and table."""
+    proxy = entry.get("proxy") or {}
+    names = [entry.get("mesh"), entry.get("visibility"), proxy.get("mesh"), proxy.get("visibility")]
+    return [name for name in names if name]
+
+
 def manifest_field(entry: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
     """``entry[key]``, checked to be a ``kind`` (the error names ``where`` and the field)."""
     value = entry.get(key)
     if not isinstance(value, kind):
         raise ShapeError(f"{where}: field {key!r} must be a {kind.__name__}, got {value!r}")
     return value
+
+
+def read_entry_mesh(
+    folder: Path, name: str, entry: Mapping[str, Any], files: Mapping[str, Any], where: str
+) -> FacetModel:
+    """The mesh ``folder / files["mesh"]`` (checked against ``files["sha256"]``) with the
+    materials, unit, inertia and provenance of the shape's ``entry`` (``files`` is the entry
+    itself, or its ``proxy`` record: a proxy takes the full mesh's stored inertia).
+
+    Raises
+    ------
+    ShapeError
+        A missing or changed file, bad fields (the message starts with ``where``).
+    """
+    mesh_path = folder / manifest_field(files, "mesh", str, where)
+    if not mesh_path.is_file():
+        raise ShapeError(f"{where}: mesh file {mesh_path} is missing")
+    if file_sha256(mesh_path) != files.get("sha256"):
+        raise ShapeError(f"{where}: {mesh_path.name} changed since it was added (sha256 mismatch)")
+    materials = {
+        group: Material.from_dict(spec, f"{where}, material of group {group!r}")
+        for group, spec in manifest_field(entry, "materials", dict, where).items()
+    }
+    inertia_spec = manifest_field(entry, "inertia", dict, where)
+    source = inertia_spec.get("source")
+    if source not in ("solid", "shell", "given"):
+        raise ShapeError(f"{where}: inertia source must be solid, shell or given")
+    given = source == "given" or files is not entry
+    return load_mesh(
+        mesh_path,
+        unit=manifest_field(entry, "unit", str, where),
+        name=name,
+        materials=materials,
+        inertia=np.asarray(inertia_spec.get("tensor"), float) if given else source,
+        mass=inertia_spec.get("mass"),
+        center_of_mass=inertia_spec.get("center_of_mass") if given else None,
+        provenance=entry.get("provenance", {}),
+    )
 
 
 def manifest_entry(

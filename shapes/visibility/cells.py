@@ -1,5 +1,5 @@
 """Packed per-facet flags of a visibility table's grid: which facets face a direction, and
-which are partly shadowed around a grid cell.
+which are partly shadowed around a grid cell; the words of those facets at the cell's corners.
 
 The flags are kept packed (one bit per facet, little-endian bytes) and unpacked one block of
 rows at a time: a ``(directions, K)`` or ``(cells, K)`` bool array of a 10⁵-facet model would
@@ -10,9 +10,21 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["facing_flags", "partial_cells"]
+__all__ = ["cell_corners", "corner_words", "facing_flags", "partial_cells"]
 
 _BLOCK_ROWS = 512  # directions or cells per unpacked block
+_ENTRY_BLOCK = 1 << 20  # cell entries whose words are gathered at a time
+
+
+def cell_corners(node_index: np.ndarray) -> np.ndarray:
+    """(cells, 3) corner nodes of the grid's triangles, in the lookup kernels' cell order.
+
+    ``node_index`` : (6, n + 1, n + 1) int, the node of each face's grid point.
+    """
+    ni = node_index
+    lower = np.stack([ni[:, :-1, :-1], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
+    upper = np.stack([ni[:, 1:, 1:], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
+    return np.stack([lower, upper], axis=3).reshape(-1, 3)
 
 
 def facing_flags(directions: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -37,8 +49,8 @@ def facing_flags(directions: np.ndarray, normals: np.ndarray) -> np.ndarray:
 def partial_cells(
     full: np.ndarray, front: np.ndarray, corners: np.ndarray, n_facets: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(cell, facet)`` of every facet that faces one of a cell's corners and is not fully
-    visible from all three, in cell then facet order.
+    """``(cell, facet)`` (int32 arrays) of every facet that faces one of a cell's corners and
+    is not fully visible from all three, in cell then facet order.
 
     Parameters
     ----------
@@ -55,6 +67,55 @@ def partial_cells(
         faces = front[c[:, 0]] | front[c[:, 1]] | front[c[:, 2]]
         partial = np.unpackbits(~every & faces, axis=1, bitorder="little")[:, :n_facets]
         cell, facet = np.nonzero(partial)
-        cells.append(cell + first)
-        facets.append(facet)
+        cells.append((cell + first).astype(np.int32))
+        facets.append(facet.astype(np.int32))
     return np.concatenate(cells), np.concatenate(facets)
+
+
+def corner_words(
+    bits: np.ndarray,
+    corners: np.ndarray,
+    cell: np.ndarray,
+    facet: np.ndarray,
+    *,
+    segment_start: np.ndarray,
+    segment_word: np.ndarray,
+    segment_mask: np.ndarray,
+) -> np.ndarray:
+    """``(S_cells, 3)`` uint64: for each entry ``(cell, facet)`` (a facet partly shadowed
+    around a cell), the words of the facet's segments at the cell's three corners, masked
+    to the segment; entry after entry, segment after segment.
+
+    The entries are gathered a block at a time: index arrays over every entry at once take
+    several GB at 10⁵ facets.
+
+    Parameters
+    ----------
+    bits : (D, W) uint64
+        The table's bits.
+    corners : (cells, 3) int
+        Corner nodes of each cell.
+    cell, facet : (E,) int
+        The entries.
+    segment_start : (K + 1,) int
+        First segment of each facet.
+    segment_word, segment_mask : (S,) arrays
+        Word of each segment and its bits within the word.
+    """
+    count = np.diff(segment_start)
+    out = np.empty((int(count[facet].sum()), 3), dtype=np.uint64)
+    row0 = 0
+    for first in range(0, len(facet), _ENTRY_BLOCK):
+        block = facet[first : first + _ENTRY_BLOCK]
+        n = count[block]
+        entry = np.repeat(np.arange(len(n)), n)
+        segment = segment_start[block][entry] + np.arange(len(entry))
+        segment -= np.repeat(np.cumsum(n) - n, n)
+        nodes = corners[cell[first : first + _ENTRY_BLOCK][entry]]
+        np.bitwise_and(
+            bits[nodes, segment_word[segment, None]],
+            segment_mask[segment, None],
+            out=out[row0 : row0 + len(entry)],
+        )
+        row0 += len(entry)
+    return out

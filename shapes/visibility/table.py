@@ -19,6 +19,7 @@ front-facing factors ``max(0, n·L) max(0, n·V)`` the flux carries anyway
 from __future__ import annotations
 
 import os
+import threading
 from typing import Any
 
 import numpy as np
@@ -26,8 +27,8 @@ from array_api_compat import array_namespace
 
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
-from shapes.files import atomic_write
-from shapes.visibility.cells import facing_flags, partial_cells
+from shapes.files import write_npz
+from shapes.visibility.cells import cell_corners, corner_words, facing_flags, partial_cells
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -38,6 +39,7 @@ DEFAULT_RESOLUTION = 26
 #: visible fraction per facet and direction (no joint fractions); it is refused.
 FORMAT_VERSION = 2
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_BUILD_LOCK = threading.Lock()
 _SEGMENT_FIELDS = ("segment_facet", "segment_word", "segment_shift", "segment_length")
 
 
@@ -212,38 +214,44 @@ class VisibilityTable:
             return self._frozen[id(order)][1]
         key = b"" if order is None else np.asarray(order, np.int64).tobytes()
         if key not in self._lookups:
-            order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
-            if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
-                raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
-            unused = order < 0
-            segments = self._segments()
-            count = np.where(unused, 0, np.diff(segments["segment_start"])[order])
-            first = np.repeat(segments["segment_start"][order], count)
-            step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-            lookup = {
-                "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
-                "segment_word": segments["segment_word"][first + step],
-                "segment_mask": segments["segment_mask"][first + step],
-                "segment_weight": segments["segment_weight"][first + step],
-                # an unused column faces nowhere: never looked up
-                "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
-                "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
-                "rotation": np.ascontiguousarray(self.rotation),
-            }
-            full = np.empty((len(self.grid), -(-len(order) // 64)), dtype=np.uint64)
-            _kernels().full_flags(
-                self.bits,
-                lookup["segment_start"],
-                lookup["segment_word"],
-                lookup["segment_mask"],
-                full,
-            )
-            lookup["full"] = full
-            lookup.update(self._cell_entries(order))
-            self._lookups[key] = lookup
+            with _BUILD_LOCK:  # the threads of one render call share one build
+                if key not in self._lookups:
+                    self._lookups[key] = self._build_lookup(order)
         if frozen:
             self._frozen[id(order)] = (order, self._lookups[key])
         return self._lookups[key]
+
+    def _build_lookup(self, order: np.ndarray | None) -> dict[str, np.ndarray]:
+        """The arrays of :meth:`_lookup` for ``order``."""
+        order = np.arange(self.n_facets) if order is None else np.asarray(order, np.int64)
+        if order.ndim != 1 or np.any((order < -1) | (order >= self.n_facets)):
+            raise ValueError(f"order must list facet indices below {self.n_facets} or -1")
+        unused = order < 0
+        segments = self._segments()
+        count = np.where(unused, 0, np.diff(segments["segment_start"])[order])
+        first = np.repeat(segments["segment_start"][order], count)
+        step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        lookup = {
+            "segment_start": np.concatenate([[0], np.cumsum(count)]).astype(np.int64),
+            "segment_word": segments["segment_word"][first + step],
+            "segment_mask": segments["segment_mask"][first + step],
+            "segment_weight": segments["segment_weight"][first + step],
+            # an unused column faces nowhere: never looked up
+            "normals": np.ascontiguousarray(np.where(unused, 0.0, self.normals[order].T)),
+            "flat_index": self.grid.node_index.reshape(-1).astype(np.int64),
+            "rotation": np.ascontiguousarray(self.rotation),
+        }
+        full = np.empty((len(self.grid), -(-len(order) // 64)), dtype=np.uint64)
+        _kernels().full_flags(
+            self.bits,
+            lookup["segment_start"],
+            lookup["segment_word"],
+            lookup["segment_mask"],
+            full,
+        )
+        lookup["full"] = full
+        lookup.update(self._cell_entries(order))
+        return lookup
 
     def _segments(self) -> dict[str, np.ndarray]:
         """The segments sorted by facet (``segment_start`` per facet), with their bit masks."""
@@ -273,26 +281,28 @@ class VisibilityTable:
             start, k = seg["segment_start"], self.n_facets
             full_words = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
             _kernels().full_flags(
-                self.bits,
-                start,
-                seg["segment_word"],
-                seg["segment_mask"],
-                full_words,
+                self.bits, start, seg["segment_word"], seg["segment_mask"], full_words
             )
-            corners = self._cell_corners()
+            corners = cell_corners(self.grid.node_index)
             front = facing_flags(self.grid.directions, self.normals)
             cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
-            count = np.diff(start)[facet]
-            entry_word = np.cumsum(count) - count
-            row = np.repeat(np.arange(len(facet)), count)
-            segment = np.repeat(start[facet], count) + np.arange(count.sum()) - entry_word[row]
-            nodes = corners[cell[row]]
-            words = self.bits[nodes, seg["segment_word"][segment, None]]
+            del full_words, front
+            entry_word = np.cumsum(np.diff(start)[facet])  # int64
+            entry_word -= np.diff(start)[facet]
+            cell_words = corner_words(
+                self.bits,
+                corners,
+                cell,
+                facet,
+                segment_start=start,
+                segment_word=seg["segment_word"],
+                segment_mask=seg["segment_mask"],
+            )
             self._cache["cells"] = {
                 "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
-                "entry_facet": facet.astype(np.int32),
-                "entry_word": entry_word.astype(np.int64),
-                "cell_words": np.ascontiguousarray(words & seg["segment_mask"][segment, None]),
+                "entry_facet": facet,
+                "entry_word": entry_word,
+                "cell_words": cell_words,
             }
         return self._cache["cells"]
 
@@ -305,14 +315,20 @@ class VisibilityTable:
         per_facet = np.bincount(order[used], minlength=self.n_facets)
         first_column = np.cumsum(per_facet) - per_facet
         facet = cells["entry_facet"]
-        count = per_facet[facet]
-        source = np.repeat(np.arange(len(facet)), count)
-        step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-        entry_facet = np.ascontiguousarray(facet[source])
-        entry_word = np.ascontiguousarray(cells["entry_word"][source])
         start = cells["cell_start"]
-        entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
-        value = np.empty((len(source), 4))
+        if np.all(per_facet == 1):  # every facet in one column (a renderer's order): no copies
+            entry_facet, entry_word, cell_start = facet, cells["entry_word"], start
+            column = columns[first_column][facet]
+        else:
+            count = per_facet[facet]
+            source = np.repeat(np.arange(len(facet)), count)
+            step = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            entry_facet = np.ascontiguousarray(facet[source])
+            entry_word = np.ascontiguousarray(cells["entry_word"][source])
+            entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
+            cell_start = np.searchsorted(entry_cell[source], np.arange(len(start)))
+            column = columns[first_column[entry_facet] + step]
+        value = np.empty((len(entry_facet), 4))
         _kernels().cell_fractions(
             cells["cell_words"],
             entry_word,
@@ -321,11 +337,9 @@ class VisibilityTable:
             seg["segment_weight"],
             value[:, :3],
         )
-        value[:, 3] = columns[first_column[entry_facet] + step]
+        value[:, 3] = column
         return {
-            "cell_start": np.searchsorted(entry_cell[source], np.arange(len(start))).astype(
-                np.int64
-            ),
+            "cell_start": cell_start.astype(np.int64),
             "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
             "entry_value": value,
             "entry_facet": entry_facet,
@@ -342,13 +356,6 @@ class VisibilityTable:
             length == 64, np.uint64(2**64 - 1), (np.uint64(1) << (length % np.uint64(64))) - 1
         )
         return ones.astype(np.uint64) << self.layout["segment_shift"].astype(np.uint64)
-
-    def _cell_corners(self) -> np.ndarray:
-        """(cells, 3) corner nodes of the grid's triangles, in the kernels' cell order."""
-        ni = self.grid.node_index
-        lower = np.stack([ni[:, :-1, :-1], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
-        upper = np.stack([ni[:, 1:, 1:], ni[:, 1:, :-1], ni[:, :-1, 1:]], axis=-1)
-        return np.stack([lower, upper], axis=3).reshape(-1, 3)
 
     def interpolate(self, directions: Any) -> Any:
         """Visible fractions of all effective facets for arbitrary body-frame directions.
@@ -502,15 +509,16 @@ class VisibilityTable:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the table atomically as a compressed ``.npz`` (format :data:`FORMAT_VERSION`).
+        """Write the table atomically as a compressed ``.npz`` (format :data:`FORMAT_VERSION`;
+        zlib level 1, :func:`shapes.files.write_npz`).
 
         The bits are stored direction-major per word (``bits.T``), which keeps neighbouring
         directions' words together and compresses best.
         """
         lay = self.layout
-        with atomic_write(path, "wb") as handle:
-            np.savez_compressed(
-                handle,
+        write_npz(
+            path,
+            dict(
                 format_version=np.int64(FORMAT_VERSION),
                 resolution=np.int64(self.resolution),
                 structure=np.str_(self.structure),
@@ -525,7 +533,8 @@ class VisibilityTable:
                 segment_shift=lay["segment_shift"].astype(np.uint8),
                 segment_length=lay["segment_length"].astype(np.uint8),
                 segment_weight=lay["segment_weight"],
-            )
+            ),
+        )
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> VisibilityTable:
