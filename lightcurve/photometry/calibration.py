@@ -239,6 +239,8 @@ def calibrate(
     loss_scale: float = 3.0,
     shadows: str = "auto",
     earthshine: str = "auto",
+    starts: int = 6,
+    seed: int = 0,
 ) -> Calibration:
     """Fit a magnitude offset, attitude and joint offsets and BRDF parameters of ``model``.
 
@@ -281,6 +283,12 @@ def calibrate(
         Include the Earth's light in the model
         (:func:`~lightcurve.photometry.earthshine.earthshine_applies`: ``"auto"`` when the
         observations carry the ``obj_*`` positions and the object is in low orbit).
+    starts : int
+        Starts of the local fit: the priors' centre, and ``starts − 1`` points drawn from
+        the priors (``numpy.random.default_rng(seed)``). Each is screened by a short fit
+        (10 iterations); the best is fitted to convergence.
+    seed : int
+        Seed of those draws.
 
     Returns
     -------
@@ -355,13 +363,32 @@ def calibrate(
     unbounded = int(offset) + layout.n_angles + len(joints)
     lower = np.concatenate([np.full(unbounded, -np.inf), [f.to_search(f.lower) for f in free]])
     upper = np.concatenate([np.full(unbounded, np.inf), [f.to_search(f.upper) for f in free]])
-    x0 = np.clip(x0, np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf))
+    inside = (np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf))
+    # further starts: the priors' centre moved by a draw of the priors (seeded); lobe widths
+    # and weights have several local minima once glints and the Earth's light are modelled
+    rng = np.random.default_rng(seed)
+    x_starts = [np.clip(x0, *inside)]
+    for _ in range(starts - 1):
+        moved = x0 + np.concatenate([np.zeros(int(offset)), rng.normal(0.0, prior_sigma)])
+        x_starts.append(np.clip(started(np.clip(moved, *inside)), *inside))
     # each unknown scaled by its prior's 1σ (the magnitude offset by 1 mag): the Jacobian's
     # own scaling ("jac") crawls along the offset–albedo valley for hundreds of iterations
     scale = np.concatenate([np.ones(int(offset)), prior_sigma])
-    fit = least_squares(
-        residuals, x0, bounds=(lower, upper), loss="soft_l1", f_scale=loss_scale, x_scale=scale
-    )
+
+    def local_fit(x: np.ndarray, max_nfev: int | None = None) -> Any:
+        return least_squares(
+            residuals,
+            x,
+            bounds=(lower, upper),
+            loss="soft_l1",
+            f_scale=loss_scale,
+            x_scale=scale,
+            max_nfev=max_nfev,
+        )
+
+    # every start is screened by a short fit; the best is fitted to convergence
+    screened = sorted((local_fit(x, _SCREEN_NFEV) for x in x_starts), key=lambda r: r.cost)
+    fit = local_fit(screened[0].x)
     data = fit.fun[: len(measured)]
     spread = 1.4826 * float(np.median(np.abs(data - np.median(data))))
     covariance = np.linalg.pinv(fit.jac.T @ fit.jac, hermitian=True) * max(1.0, spread**2)
@@ -412,6 +439,9 @@ def calibrate(
         earthshine=with_earth,
     )
 
+
+#: Iterations of the short fit that screens each start of :func:`calibrate`.
+_SCREEN_NFEV = 10
 
 #: Names of the fitted attitude offsets (3-2-1 Euler angles of the body from its profile).
 ATTITUDE_OFFSETS = ("offset_roll_deg", "offset_pitch_deg", "offset_yaw_deg")
