@@ -74,7 +74,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--folds", type=int, default=0, help="cross-validate by night in K folds (0: none)"
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the folds' shuffle")
+    parser.add_argument(
+        "--starts",
+        type=int,
+        default=6,
+        help="starts of the fit: the library's values and draws from the priors (default 6)",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the folds' shuffle and of the starts"
+    )
     parser.add_argument(
         "--loss-scale",
         type=float,
@@ -127,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         "loss_scale": args.loss_scale,
         "shadows": args.shadows,
         "earthshine": args.earthshine,
+        "starts": args.starts,
     }
     summary: dict[str, Any] = {
         "files": [str(p) for p in args.files],
@@ -151,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed,
         )
     else:
-        calibration = calibrate(shape, q, observations, **options)
+        calibration = calibrate(shape, q, observations, seed=args.seed, **options)
     names = list(calibration.parameters)
     summary["earthshine"] = calibration.earthshine
     summary.update(

@@ -582,7 +582,8 @@ def cross_validate(
     """k-fold cross-validation of :func:`calibrate` by night.
 
     The nights are shuffled (``numpy.random.default_rng(seed)``) and dealt into ``folds``
-    groups; each group is predicted by the calibration on the others.
+    groups; each group is predicted by the calibration on the others. ``seed`` is also the
+    seed of every calibration's starts; ``options`` go to :func:`calibrate`.
 
     Returns
     -------
@@ -602,7 +603,7 @@ def cross_validate(
     for k in range(folds):
         test = np.isin(nights, order[k::folds])
         train = _subset(observations, ~test)
-        calibration = calibrate(model, np.asarray(q)[~test], train, **options)
+        calibration = calibrate(model, np.asarray(q)[~test], train, seed=seed, **options)
         test_obs = _subset(observations, test)
         predicted = calibration.magnitude(model, np.asarray(q)[test], test_obs)
         residual = test_obs.magnitudes - predicted  # +inf where the model is dark: left out
@@ -616,7 +617,7 @@ def cross_validate(
                 "bias_mag": float(np.nanmean(residual)),
             }
         )
-    everything = calibrate(model, q, observations, **options)
+    everything = calibrate(model, q, observations, seed=seed, **options)
     return {
         "train_rms_mag": everything.train_rms_mag,
         "cv_rms_mag": float(np.sqrt(np.nanmean(held_out**2))),
