@@ -1,7 +1,7 @@
 """Starlink v1.5 calibrated on the Pomenis observations, cross-validated by night. Prints JSON.
 
     python -m benchmarks.starlink_calibration [--folds 5] [--seed 0] [--splits 4] [--every 1]
-        [--sets NAME,…] [--out FILE]
+        [--sets NAME,…] [--starts 6] [--out FILE]
 
 The built-in ``starlink_v1_5`` shape (the two-surface model of Fankhauser, Askari & Tyson
 2023: chassis to nadir, a solar array that turns about the vertical to face the Sun,
@@ -102,6 +102,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--splits", type=int, default=4)
     parser.add_argument("--every", type=int, default=1)
     parser.add_argument("--sets", default=",".join(PARAMETER_SETS))
+    parser.add_argument("--starts", type=int, default=6, help="starts of every calibration")
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
 
@@ -129,6 +130,7 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.sets.split(","):
         options = PARAMETER_SETS[name]
         start = time.process_time()
+        options = {**options, "starts": args.starts}
         fit = calibrate(model, q, observations, shadows="none", **options)
         fit_time = time.process_time() - start
         result = cross_validate(
