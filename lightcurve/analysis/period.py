@@ -44,6 +44,7 @@ __all__ = [
     "fourier_chi2",
     "lomb_scargle_period",
     "pab_longitude",
+    "pab_rate",
     "period_search",
     "synodic_to_sidereal",
 ]
@@ -179,6 +180,26 @@ def pab_longitude(sun: np.ndarray, observer: np.ndarray, pole: tuple[float, floa
     return np.arctan2(in_pole_frame[:, 1], in_pole_frame[:, 0])
 
 
+def pab_rate(
+    mjd: np.ndarray, sun: np.ndarray, observer: np.ndarray, pole: tuple[float, float]
+) -> float:
+    """Mean rate Λ̇ (rad/h) of the PAB longitude about a pole over the epochs: the
+    least-squares slope of the unwrapped :func:`pab_longitude` (0 for a single epoch).
+
+    Parameters
+    ----------
+    mjd : (n,) float
+    sun, observer : (n, 3) float
+        Object → Sun and object → observer vectors (inertial).
+    pole : (λ, β)
+        Pole (rad); a positive rotation about it.
+    """
+    order = np.argsort(mjd)
+    longitude = np.unwrap(pab_longitude(sun[order], observer[order], pole))
+    hours = (np.asarray(mjd)[order] - mjd[order][0]) * 24.0
+    return float(np.polyfit(hours, longitude, 1)[0]) if len(hours) > 1 else 0.0
+
+
 def synodic_to_sidereal(
     period_h: float,
     mjd: np.ndarray,
@@ -186,10 +207,7 @@ def synodic_to_sidereal(
     observer: np.ndarray,
     pole: tuple[float, float],
 ) -> float:
-    """Sidereal period from a synodic one: ``1/P_sid = 1/P_syn + Λ̇/2π``.
-
-    Λ̇ is the mean rate of the PAB longitude about the pole over the epochs (least-squares
-    slope of the unwrapped longitude).
+    """Sidereal period from a synodic one: ``1/P_sid = 1/P_syn + Λ̇/2π`` (:func:`pab_rate`).
 
     Parameters
     ----------
@@ -206,41 +224,40 @@ def synodic_to_sidereal(
     float
         Sidereal period (h).
     """
-    order = np.argsort(mjd)
-    longitude = np.unwrap(pab_longitude(sun[order], observer[order], pole))
-    hours = (np.asarray(mjd)[order] - mjd[order][0]) * 24.0
-    rate = np.polyfit(hours, longitude, 1)[0] if len(hours) > 1 else 0.0
-    return 1.0 / (1.0 / period_h + rate / (2 * math.pi))
+    return 1.0 / (1.0 / period_h + pab_rate(mjd, sun, observer, pole) / (2 * math.pi))
 
 
 class FourierDesign:
-    """Weighted least squares of a Fourier model with per-curve offsets (shared setup).
+    """Weighted least squares of a Fourier model with per-curve nuisance terms (shared setup).
 
     The model is a sum of terms ``a cos(n·ψ) + b sin(n·ψ)`` over integer combination vectors
     ``n`` of one or more phases ``ψ_d = 2π f_d t`` (the first one minus ``phase_offset``):
     one phase with ``n = 1..K`` is the K-harmonic series of :func:`period_search`, two
     phases with the combinations ``j f1 + k f2`` are the two-period series of
-    :mod:`lightcurve.analysis.tumbling`. The offsets are eliminated by weighted demeaning
-    within each curve, so every trial needs only a ``2P × 2P`` system for P terms.
+    :mod:`lightcurve.analysis.tumbling`. Each curve has its own zero point and, with
+    ``trend_degree = d > 0``, its own polynomial ``Σ_{i ≤ d} c_i P_i(τ)`` (Legendre
+    polynomials of the curve's time scaled to τ ∈ [−1, 1]): the slow change of the mean
+    brightness with the geometry (range, phase angle) over a night or a pass, which a
+    Fourier series of the rotation cannot follow. These nuisance columns ``G`` are
+    eliminated by projection: with ``Q = G L⁻ᵀ`` (``L Lᵀ = GᵀWG``, so ``QᵀWQ = 1``) the
+    normal matrix of the Fourier terms is ``XWXᵀ − (XWQ)(XWQ)ᵀ`` and the data are
+    projected once, so every trial needs only a ``2P × 2P`` system for P terms.
     """
 
-    def __init__(self, times, values, sigma, curve, phase_offset=None) -> None:
+    def __init__(self, times, values, sigma, curve, phase_offset=None, *, trend_degree=0) -> None:
         self.t = np.asarray(times, float) - float(np.min(times))
         self.w = 1.0 / np.asarray(sigma, float) ** 2
-        _, index = np.unique(curve, return_inverse=True)
-        self.n_curves = int(index.max()) + 1
-        self.one_hot = np.zeros((len(index), self.n_curves))
-        self.one_hot[np.arange(len(index)), index] = 1.0
-        self.weight_sum = np.bincount(index, self.w)
-        self.y = self._demean(values)
+        self.tau = _curve_time(self.t, curve)
+        self.nuisance = _orthonormal_nuisance(self.tau, self.w, curve, trend_degree)
+        self.n_nuisance = self.nuisance.shape[1]
+        self.y = self._project(values)
         self.base = float(np.sum(self.w * self.y * self.y))
         self.offset = 0.0 if phase_offset is None else np.asarray(phase_offset, float)
 
-    def _demean(self, x: np.ndarray) -> np.ndarray:
-        """Subtract each curve's weighted mean along the last axis."""
+    def _project(self, x: np.ndarray) -> np.ndarray:
+        """Remove the nuisance terms' weighted least-squares fit along the last axis."""
         x = np.asarray(x, float)
-        means = ((x * self.w) @ self.one_hot) / self.weight_sum
-        return x - means @ self.one_hot.T
+        return x - ((x * self.w) @ self.nuisance) @ self.nuisance.T
 
     def solve(self, frequencies: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients ``[a_1..a_K, b_1..b_K]`` (n, 2K) and χ² (n,) at each frequency."""
@@ -248,7 +265,12 @@ class FourierDesign:
         return self.solve_combinations(np.asarray(frequencies, float)[:, None], harmonics)
 
     def solve_combinations(
-        self, frequencies: np.ndarray, combinations: np.ndarray
+        self,
+        frequencies: np.ndarray,
+        combinations: np.ndarray,
+        *,
+        slowest: float = 0.0,
+        modulation: int = 0,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients ``[a_1..a_P, b_1..b_P]`` (n, 2P) and χ² (n,) of the terms
         ``a_p cos(n_p·ψ) + b_p sin(n_p·ψ)``.
@@ -260,10 +282,18 @@ class FourierDesign:
         combinations : (P, D) int
             Integer combination vectors ``n_p`` of the D phases (none all zero, no two of
             opposite sign).
+        slowest : float
+            Terms whose frequency ``|n_p·f|`` (Hz) is below this are left out (their
+            coefficients are zero): slower than the curves' trend polynomials resolve, they
+            would only duplicate them.
+        modulation : int
+            Degree d of a slow change of every coefficient within each curve: the terms are
+            repeated times the Legendre polynomials ``P_1..P_d`` of the curve's scaled time
+            (``2P(d + 1)`` coefficients).
 
         Returns
         -------
-        coefficients : (n, 2P) float
+        coefficients : (n, 2P(d + 1)) float
         chi2 : (n,) float
         """
         f = np.asarray(frequencies, float)
@@ -281,17 +311,51 @@ class FourierDesign:
             for p, n in enumerate(combinations[:, d]):
                 if n:
                     z[:, p] *= powers[n] if n > 0 else np.conj(powers[-n])
+        if slowest > 0:
+            z *= (np.abs(f @ combinations.T) >= slowest)[..., None]
         x = np.concatenate([z.real, z.imag], axis=1)
+        if modulation:
+            legendre = np.polynomial.legendre.legvander(self.tau, modulation).T
+            x = np.concatenate([x * row for row in legendre], axis=1)
         xw = x * self.w
-        # The demeaned design's Gram matrix without forming it: X W Xᵀ minus, per curve,
-        # (X W 1_c)(X W 1_c)ᵀ / W_c; the data are demeaned already, so X W y needs nothing.
-        sums = xw @ self.one_hot
-        gram = xw @ x.transpose(0, 2, 1) - (sums / self.weight_sum) @ sums.transpose(0, 2, 1)
+        # The projected design's Gram matrix without forming it: X W Xᵀ − (X W Q)(X W Q)ᵀ;
+        # the data are projected already, so X W y needs nothing.
+        sums = xw @ self.nuisance
+        gram = xw @ x.transpose(0, 2, 1) - sums @ sums.transpose(0, 2, 1)
         rhs = xw @ self.y
-        size = 2 * len(combinations)
+        size = x.shape[1]
         gram += 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(size)
         solution = np.linalg.solve(gram, rhs[..., None])[..., 0]
         return solution, self.base - np.sum(solution * rhs, axis=1)
+
+
+def _curve_time(t: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """Each curve's time scaled to ``[−1, 1]`` (0 for a curve on one epoch)."""
+    tau = np.zeros(len(t))
+    for c in np.unique(curve):
+        rows = curve == c
+        span = np.ptp(t[rows])
+        if span > 0:
+            tau[rows] = 2 * (t[rows] - t[rows].min()) / span - 1
+    return tau
+
+
+def _orthonormal_nuisance(
+    tau: np.ndarray, w: np.ndarray, curve: np.ndarray, degree: int
+) -> np.ndarray:
+    """Per-curve Legendre columns ``P_0..P_d`` of the curve's scaled time τ, made
+    W-orthonormal (``QᵀWQ = 1``; :class:`FourierDesign`)."""
+    if degree < 0:
+        raise ValueError(f"the trend degree must be ≥ 0, got {degree}")
+    columns = []
+    for c in np.unique(curve):
+        rows = curve == c
+        block = np.zeros((len(tau), min(degree, len(np.unique(tau[rows])) - 1) + 1))
+        block[rows] = np.polynomial.legendre.legvander(tau[rows], block.shape[1] - 1)
+        columns.append(block)
+    g = np.concatenate(columns, axis=1)
+    normal = g.T @ (g * w[:, None])
+    return g @ np.linalg.inv(np.linalg.cholesky(normal)).T
 
 
 def fourier_chi2(
@@ -374,6 +438,7 @@ def period_search(
     oversample: float = 10.0,
     pole: tuple[float, float] | None = None,
     n_peaks: int = 5,
+    trend_degree: int = 0,
     progress: Callable[[int, int], None] | None = None,
 ) -> PeriodResult:
     """Search the rotation period of one or more observation files.
@@ -395,6 +460,9 @@ def period_search(
         the PAB-corrected phase.
     n_peaks : int
         Other periodogram minima reported besides the structural aliases.
+    trend_degree : int
+        Degree of each curve's Legendre polynomial in time (0: a zero point only), the slow
+        change of the mean brightness with the geometry (:class:`FourierDesign`).
     progress : callable, optional
         Called as ``progress(trials_done, trials_total)`` while the χ² curves are computed
         (one trial per frequency and harmonic order).
@@ -438,7 +506,7 @@ def period_search(
     frequencies = np.linspace(f_min, f_max, count)
     offset = None if pole is None else pab_longitude(sun, observer, pole)
 
-    design = FourierDesign(times, mags, sigma, curve, offset)
+    design = FourierDesign(times, mags, sigma, curve, offset, trend_degree=trend_degree)
 
     def chi2(freqs: np.ndarray, order: int) -> np.ndarray:
         freqs = np.atleast_1d(freqs)
@@ -446,11 +514,11 @@ def period_search(
             [design.solve(freqs[i : i + 256], order)[1] for i in range(0, len(freqs), 256)]
         )
 
-    n_curves = len(np.unique(curve))
+    n_nuisance = design.n_nuisance
     n = len(times)
 
     def bic(c: float, order: int) -> float:
-        return c + (2 * order + n_curves + 1) * math.log(n)
+        return c + (2 * order + n_nuisance + 1) * math.log(n)
 
     curves = {}
     for done, order in enumerate(orders):
@@ -499,7 +567,7 @@ def period_search(
     )
     b0, f0, order0, c0 = entries[kind_best]
     _, _, curvature = refine(f0, order0)
-    reduced = max(c0 / max(n - 2 * order0 - n_curves, 1), 1.0)
+    reduced = max(c0 / max(n - 2 * order0 - n_nuisance, 1), 1.0)
     sigma_f = math.sqrt(2.0 * reduced / curvature) if curvature > 0 else float("inf")
     period_h = 1.0 / f0 / 3600.0
     sigma_h = sigma_f / f0**2 / 3600.0

@@ -79,12 +79,22 @@ __all__ = [
 #: ΔBIC (one-period minus two-period) above which the second frequency is significant
 #: ("very strong" evidence, Kass & Raftery 1995, J. Am. Stat. Assoc. 90, 773).
 SIGNIFICANT_DELTA_BIC = 10.0
+#: Degree of each light curve's Legendre polynomial in time in both series: the slow change
+#: of the mean brightness with range and phase angle over a night or a pass.
+TREND_DEGREE = 3
+#: Degree of the slow change of the one-period rival's coefficients within a light curve:
+#: its amplitude and shape follow the aspect and phase angle over a night or a pass.
+MODULATION_DEGREE = 3
 #: Two frequencies with ``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` (p, q ≤
 #: ``COMMENSURATE_MAX``) are harmonics of one period, not two periods (T: the time span).
 COMMENSURATE_RESOLUTION = 0.25
 #: The two frequencies must differ by at least this many cycles over the time span T
-#: (closer ones beat into a slow modulation the arc cannot resolve as a period).
+#: (closer ones beat into a slow modulation the arc cannot resolve as a period), and so
+#: must one and the double or half of the other: a rotator's first and second harmonics,
+#: drifting in phase as the geometry changes, otherwise pass for two periods.
 MIN_SEPARATION_CYCLES = 1.5
+#: The ratios ``(p, q)`` of that test, ``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T``.
+RESOLVED_RATIOS = ((1, 1), (1, 2), (2, 1))
 #: Harmonic orders of the one-period rival judged on all points (besides ``single_orders``).
 SINGLE_HARMONICS = (8, 10, 12, 16)
 #: Largest numerator and denominator of the commensurability test.
@@ -246,29 +256,42 @@ def euler_reading(
 class _TwoPeriodFit:
     """χ² of the two-period series at trial pairs, on all points or the subset ``keep``."""
 
-    def __init__(self, data: StackedLightCurves, keep: np.ndarray | slice = slice(None)) -> None:
+    def __init__(
+        self,
+        data: StackedLightCurves,
+        trend_degree: int,
+        keep: np.ndarray | slice = slice(None),
+    ) -> None:
         self.design = FourierDesign(
-            data.times[keep], data.magnitudes[keep], data.sigma[keep], data.curve[keep]
+            data.times[keep],
+            data.magnitudes[keep],
+            data.sigma[keep],
+            data.curve[keep],
+            trend_degree=trend_degree,
         )
         self.n = len(self.design.t)
+        # Combination terms slower than the trend resolves are left out of the series.
+        self.slowest = MIN_SEPARATION_CYCLES / float(np.ptp(data.times))
 
     def chi2(self, pairs: np.ndarray, order: int) -> np.ndarray:
         pairs = np.atleast_2d(pairs)
         combos = two_period_combinations(order)
         return np.concatenate(
             [
-                self.design.solve_combinations(pairs[i : i + _CHUNK], combos)[1]
+                self.design.solve_combinations(pairs[i : i + _CHUNK], combos, slowest=self.slowest)[
+                    1
+                ]
                 for i in range(0, len(pairs), _CHUNK)
             ]
         )
 
     def coefficients(self, pair: np.ndarray, order: int) -> np.ndarray:
         return self.design.solve_combinations(
-            np.asarray(pair, float)[None], two_period_combinations(order)
+            np.asarray(pair, float)[None], two_period_combinations(order), slowest=self.slowest
         )[0][0]
 
     def bic(self, chi2: float, order: int) -> float:
-        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_curves + 2
+        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_nuisance + 2
         return chi2 + n_parameters * math.log(self.n)
 
 
@@ -324,14 +347,20 @@ def _subset(n: int, fraction: float) -> np.ndarray:
 
 
 def _single_bic(design: FourierDesign, f0: float, order: int, step: float) -> float:
-    """BIC of the K-harmonic one-period series at its χ² minimum within ``f0 ± step``."""
+    """BIC of the K-harmonic one-period series, its coefficients changing linearly within
+    each light curve (``MODULATION_DEGREE``), at its χ² minimum within ``f0 ± step``."""
+    harmonics = np.arange(1, order + 1)[:, None]
     result = minimize_scalar(
-        lambda f: float(design.solve(np.array([f]), order)[1][0]),
+        lambda f: float(
+            design.solve_combinations(np.array([[f]]), harmonics, modulation=MODULATION_DEGREE)[1][
+                0
+            ]
+        ),
         bounds=(f0 - step, f0 + step),
         method="bounded",
         options={"xatol": 1e-4 * step},
     )
-    n_parameters = 2 * order + design.n_curves + 1
+    n_parameters = 2 * order * (MODULATION_DEGREE + 1) + design.n_nuisance + 1
     return float(result.fun) + n_parameters * math.log(len(design.t))
 
 
@@ -361,11 +390,13 @@ def _commensurate(pair: np.ndarray, span_s: float) -> bool:
 
 
 def _admissible(pair: np.ndarray, span_s: float) -> bool:
-    """Two frequencies that can be two periods: apart by ``MIN_SEPARATION_CYCLES / T`` and
-    not commensurate."""
-    return abs(pair[0] - pair[1]) * span_s >= MIN_SEPARATION_CYCLES and not _commensurate(
-        pair, span_s
-    )
+    """Two frequencies that can be two periods: each apart from the other and from its
+    double and half by ``MIN_SEPARATION_CYCLES / T`` (``|q f2 − p f1|`` for ``(p, q)`` in
+    ``RESOLVED_RATIOS``), and not commensurate."""
+    f1, f2 = pair
+    return all(
+        abs(q * f2 - p * f1) * span_s >= MIN_SEPARATION_CYCLES for p, q in RESOLVED_RATIOS
+    ) and not _commensurate(pair, span_s)
 
 
 def tumbling_search(
@@ -376,6 +407,7 @@ def tumbling_search(
     single_orders: Sequence[int] = (2, 3, 4, 5, 6),
     oversample: float = 3.0,
     max_coarse_points: int = 2000,
+    trend_degree: int = TREND_DEGREE,
     progress: Callable[[int, int], None] | None = None,
 ) -> TumblingResult:
     """Two-period (tumbling) analysis of one or more observation files (module docstring).
@@ -395,6 +427,8 @@ def tumbling_search(
         Coarse-scan frequency step ``1/(oversample · T)``.
     max_coarse_points : int
         Points of the coarse scan (a seeded random subset); the refinement uses all.
+    trend_degree : int
+        Degree of each light curve's polynomial in time, in both series (module docstring).
     progress : callable, optional
         ``progress(rows_done, rows_total)`` over the coarse scan's rows.
 
@@ -421,6 +455,7 @@ def tumbling_search(
         period_range_h,
         orders=single_orders,
         oversample=oversample,
+        trend_degree=trend_degree,
     )
     low, high = sorted(float(v) for v in period_range_h)
     f_min, f_max = 1.0 / (high * 3600.0), 1.0 / (low * 3600.0)
@@ -438,7 +473,7 @@ def tumbling_search(
     for f in peaks[:_EXTRA_FIRST]:
         first += [f, f / 2]
     first = np.array([f for f in first if f_min <= f <= f_max])
-    coarse = _TwoPeriodFit(data, _subset(n, fraction))
+    coarse = _TwoPeriodFit(data, trend_degree, _subset(n, fraction))
     scan = np.empty((len(first), len(second)))
     allowed = np.zeros(scan.shape, bool)
     for row, f1 in enumerate(first):
@@ -462,7 +497,7 @@ def tumbling_search(
             break
     # Local minima on the coarse points; every re-base of each (the same lattice, so the
     # same minimum) and order judged by BIC on all points; the winner refined there.
-    full = _TwoPeriodFit(data)
+    full = _TwoPeriodFit(data, trend_degree)
     # Admissible options first (when there are any), then by BIC.
     options = [
         (
