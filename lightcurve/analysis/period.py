@@ -302,8 +302,10 @@ class FourierDesign:
         # phase and point, the powers by repeated multiplication (negative ones conjugate).
         z = np.ones((len(f), len(combinations), len(self.t)), complex)
         for d in range(f.shape[1]):
-            psi = 2 * np.pi * f[:, d, None] * self.t[None, :] - (self.offset if d == 0 else 0.0)
-            first = np.exp(1j * psi)
+            # One exponential per distinct frequency (a scan row shares its first one).
+            unique, inverse = np.unique(f[:, d], return_inverse=True)
+            psi = 2 * np.pi * unique[:, None] * self.t[None, :] - (self.offset if d == 0 else 0.0)
+            first = np.exp(1j * psi)[inverse]
             largest = int(np.max(np.abs(combinations[:, d])))
             powers = [np.ones_like(first), first]
             for _ in range(largest - 1):
