@@ -84,7 +84,8 @@ SIGNIFICANT_DELTA_BIC = 10.0
 #: of the mean brightness with range and phase angle over a night or a pass.
 TREND_DEGREE = 3
 #: Degree of the slow change of the one-period rival's coefficients within a light curve:
-#: its amplitude and shape follow the aspect and phase angle over a night or a pass.
+#: its amplitude and shape follow the aspect and phase angle over a night or a pass (the
+#: rival is also judged with fixed coefficients; the BIC chooses).
 MODULATION_DEGREE = 3
 #: Trial poles of the one-period rival's PAB phase (a Fibonacci lattice on the sphere), the
 #: order of their screening, and how many of the best are judged at every order.
@@ -352,26 +353,29 @@ def _subset(n: int, fraction: float) -> np.ndarray:
     return np.sort(np.random.default_rng(n).choice(n, size, replace=False))
 
 
-def _single_bic(design: FourierDesign, f0: float, order: int, step: float) -> float:
+def _single_bic(
+    design: FourierDesign, f0: float, order: int, step: float, *, modulation: int
+) -> float:
     """BIC of the K-harmonic one-period series, its coefficients changing within each light
-    curve (``MODULATION_DEGREE``), at its χ² minimum within ``f0 ± step`` (the pole of a
-    PAB phase, when the design has one, counts two parameters)."""
+    curve as Legendre polynomials of degree ``modulation``, at its χ² minimum within
+    ``f0 ± step`` (the pole of a PAB phase, when the design has one, counts two
+    parameters)."""
     harmonics = np.arange(1, order + 1)[:, None]
     result = minimize_scalar(
-        lambda f: float(_modulated_chi2(design, np.array([f]), harmonics)[0]),
+        lambda f: float(_modulated_chi2(design, np.array([f]), harmonics, modulation)[0]),
         bounds=(f0 - step, f0 + step),
         method="bounded",
         options={"xatol": 1e-4 * step},
     )
     pole_parameters = 0 if np.isscalar(design.offset) else 2
-    n_parameters = 2 * order * (MODULATION_DEGREE + 1) + design.n_nuisance + 1 + pole_parameters
+    n_parameters = 2 * order * (modulation + 1) + design.n_nuisance + 1 + pole_parameters
     return float(result.fun) + n_parameters * math.log(len(design.t))
 
 
-def _modulated_chi2(design: FourierDesign, frequencies: np.ndarray, harmonics) -> np.ndarray:
-    return design.solve_combinations(frequencies[:, None], harmonics, modulation=MODULATION_DEGREE)[
-        1
-    ]
+def _modulated_chi2(
+    design: FourierDesign, frequencies: np.ndarray, harmonics: np.ndarray, modulation: int
+) -> np.ndarray:
+    return design.solve_combinations(frequencies[:, None], harmonics, modulation=modulation)[1]
 
 
 def _fibonacci_poles(count: int) -> list[tuple[float, float]]:
@@ -405,7 +409,8 @@ def _rotator_designs(
     screened = []
     for pole in _fibonacci_poles(ROTATOR_POLES):
         candidate = design(pab_longitude(data.sun, data.observer, pole))
-        screened.append((float(_modulated_chi2(candidate, grid, harmonics).min()), candidate))
+        chi2 = _modulated_chi2(candidate, grid, harmonics, MODULATION_DEGREE)
+        screened.append((float(chi2.min()), candidate))
     screened.sort(key=lambda item: item[0])
     return [design(None)] + [d for _, d in screened[:ROTATOR_CANDIDATES]]
 
@@ -572,11 +577,13 @@ def tumbling_search(
     hessian = _hessian(local, h)
     chi2 = float(local[1, 1])
     best_bic = full.bic(chi2, order)
-    # The one-period rival gets as many harmonics as the two-period lattice reaches.
+    # The one-period rival gets as many harmonics as the two-period lattice reaches; its
+    # fixed-shape form (plain phase) and its slowly changing forms all compete by BIC.
     rival_frequencies = [f for f in (f0, f0 / 2) if f >= f_min]
+    designs = _rotator_designs(data, trend_degree, rival_frequencies, step)
     single_bic = min(
-        _single_bic(design, f, order, step)
-        for design in _rotator_designs(data, trend_degree, rival_frequencies, step)
+        _single_bic(design, f, order, step, modulation=modulation)
+        for design, modulation in [(designs[0], 0)] + [(d, MODULATION_DEGREE) for d in designs]
         for f in rival_frequencies
         for order in sorted({*single_orders, *SINGLE_HARMONICS})
     )

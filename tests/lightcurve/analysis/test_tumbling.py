@@ -29,7 +29,9 @@ def test_noiseless_two_frequency_signal_is_recovered():
     mag = 0.3 * np.cos(2 * p1) + 0.1 * np.cos(p2 + 0.3) + 0.08 * np.cos(p1 - p2)
     result = tumbling_search(fixed_geometry_curve(t, mag, 0.01, "two"), (0.05, 2.0))
     assert result.periods_h * 3600 == pytest.approx([700.0, 1900.0], rel=1e-5)
-    assert result.tumbling and result.delta_bic > 1e3
+    # The rival's slowly changing coefficients absorb much of f2 (within a cycle per span of
+    # the first period's harmonics here), so the margin is smaller than the χ² alone.
+    assert result.tumbling and result.delta_bic > 100
     top = {(c["j"], c["k"]) for c in result.combinations[:3]}
     assert top == {(2, 0), (0, 1), (1, -1)}
     assert result.combinations[0]["amplitude_mag"] == pytest.approx(0.3, rel=1e-3)
