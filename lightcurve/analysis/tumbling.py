@@ -9,15 +9,26 @@ eq. 1) ::
     m(t) = m_c + Σ_{(j,k)} [C_jk cos(2π(j f1 + k f2) t) + S_jk sin(2π(j f1 + k f2) t)]
 
 over ``0 ≤ j ≤ m``, ``−m ≤ k ≤ m``, ``|j| + |k| ≤ m``, ``(j, k) ≠ (0, 0)`` and one of
-``±(j, k)`` (:func:`two_period_combinations`), with one zero point ``m_c`` per light curve.
-At fixed (f1, f2) the fit is linear (:class:`~lightcurve.analysis.period.FourierDesign`,
-batched over trial pairs); the order m is chosen by the BIC ``χ² + p ln N``, ``p`` counting
-the coefficients, the zero points and the two frequencies.
+``±(j, k)`` (:func:`two_period_combinations`), where ``m_c`` is, per light curve, a
+Legendre polynomial of degree ``TREND_DEGREE`` in its scaled time (the mean brightness
+follows range and phase angle over a night or a pass), and terms slower than
+``MIN_SEPARATION_CYCLES`` per span are left out (they would duplicate it). At fixed
+(f1, f2) the fit is linear (:class:`~lightcurve.analysis.period.FourierDesign`, batched
+over trial pairs); the order m is chosen by the BIC ``χ² + p ln N``, ``p`` counting the
+coefficients, the trend terms and the two frequencies.
+
+The one-period rival has the same trend and three forms, all judged by the BIC: fixed
+coefficients; coefficients that change within each curve as Legendre polynomials of degree
+``MODULATION_DEGREE`` (the light curve's shape follows the aspect); and the latter with the
+phase ``2π f t − Λ_p(t)``, Λ_p the phase-angle-bisector longitude about a trial pole p
+(the synodic drift of a rotator's phase as the geometry moves: Harris et al. 1984, Icarus
+57, 251; Pravec et al. 2005, sec. 2), over ``ROTATOR_POLES`` poles screened at order
+``ROTATOR_SCREEN_ORDER`` (the pole counts two parameters).
 
 The search (:func:`tumbling_search`):
 
-1. the single-period search (:func:`~lightcurve.analysis.period.period_search`) gives the
-   dominant frequency f0 and the one-period BIC;
+1. the single-period search (:func:`~lightcurve.analysis.period.period_search`, one order)
+   gives the dominant frequency f0;
 2. coarse scan: f1 over f0, f0/2, 2 f0 and the next deepest one-period minima (and their
    halves), f2 over the whole grid of step ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
@@ -29,9 +40,10 @@ The search (:func:`tumbling_search`):
    at every order by the BIC on all points; the winner is taken to its minimum on all
    points, where the Hessian ``H`` of χ² (central differences) gives the covariance
    ``2 χ²_ν H⁻¹`` of (f1, f2);
-4. the verdict: **tumbling** when the two-period fit beats the one-period one by
-   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are not
-   commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
+4. the verdict: **tumbling** when the two-period fit beats the one-period rival by
+   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are resolved
+   (``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T`` for ``(p, q)`` in ``RESOLVED_RATIOS``)
+   and not commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
    ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one).
 
 Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
