@@ -22,8 +22,8 @@ coefficients; coefficients that change within each curve as Legendre polynomials
 ``MODULATION_DEGREE`` (the light curve's shape follows the aspect); and the latter with the
 phase ``2π f t − Λ_p(t)``, Λ_p the phase-angle-bisector longitude about a trial pole p
 (the synodic drift of a rotator's phase as the geometry moves: Harris et al. 1984, Icarus
-57, 251; Pravec et al. 2005, sec. 2), over ``ROTATOR_POLES`` poles screened at order
-``ROTATOR_SCREEN_ORDER`` (the pole counts two parameters).
+57, 251; Pravec et al. 2005, sec. 2), over a lattice of trial poles
+(:func:`~lightcurve.analysis.rotator_rival.rotator_bic`).
 
 The search (:func:`tumbling_search`):
 
@@ -69,15 +69,15 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize
 
 from lightcurve.analysis.period import (
     FourierDesign,
     PeriodResult,
     StackedLightCurves,
-    pab_longitude,
     period_search,
 )
+from lightcurve.analysis.rotator_rival import rotator_bic
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -95,15 +95,6 @@ SIGNIFICANT_DELTA_BIC = 10.0
 #: Degree of each light curve's Legendre polynomial in time in both series: the slow change
 #: of the mean brightness with range and phase angle over a night or a pass.
 TREND_DEGREE = 3
-#: Degree of the slow change of the one-period rival's coefficients within a light curve:
-#: its amplitude and shape follow the aspect and phase angle over a night or a pass (the
-#: rival is also judged with fixed coefficients; the BIC chooses).
-MODULATION_DEGREE = 3
-#: Trial poles of the one-period rival's PAB phase (a Fibonacci lattice on the sphere), the
-#: order of their screening, and how many of the best are judged at every order.
-ROTATOR_POLES = 48
-ROTATOR_SCREEN_ORDER = 4
-ROTATOR_CANDIDATES = 2
 #: Two frequencies with ``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` (p, q ≤
 #: ``COMMENSURATE_MAX``) are harmonics of one period, not two periods (T: the time span).
 COMMENSURATE_RESOLUTION = 0.25
@@ -114,8 +105,6 @@ COMMENSURATE_RESOLUTION = 0.25
 MIN_SEPARATION_CYCLES = 1.5
 #: The ratios ``(p, q)`` of that test, ``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T``.
 RESOLVED_RATIOS = ((1, 1), (1, 2), (2, 1))
-#: Harmonic orders of the one-period rival judged on all points (besides ``single_orders``).
-SINGLE_HARMONICS = (2, 3, 4, 6, 8, 12, 16)
 #: Largest numerator and denominator of the commensurability test.
 COMMENSURATE_MAX = 6
 #: The second frequency is searched within this factor of the dominant one.
@@ -365,68 +354,6 @@ def _subset(n: int, fraction: float) -> np.ndarray:
     return np.sort(np.random.default_rng(n).choice(n, size, replace=False))
 
 
-def _single_bic(
-    design: FourierDesign, f0: float, order: int, step: float, *, modulation: int
-) -> float:
-    """BIC of the K-harmonic one-period series, its coefficients changing within each light
-    curve as Legendre polynomials of degree ``modulation``, at its χ² minimum within
-    ``f0 ± step`` (the pole of a PAB phase, when the design has one, counts two
-    parameters)."""
-    harmonics = np.arange(1, order + 1)[:, None]
-    result = minimize_scalar(
-        lambda f: float(_modulated_chi2(design, np.array([f]), harmonics, modulation)[0]),
-        bounds=(f0 - step, f0 + step),
-        method="bounded",
-        options={"xatol": 1e-4 * step},
-    )
-    pole_parameters = 0 if np.isscalar(design.offset) else 2
-    n_parameters = 2 * order * (modulation + 1) + design.n_nuisance + 1 + pole_parameters
-    return float(result.fun) + n_parameters * math.log(len(design.t))
-
-
-def _modulated_chi2(
-    design: FourierDesign, frequencies: np.ndarray, harmonics: np.ndarray, modulation: int
-) -> np.ndarray:
-    return design.solve_combinations(frequencies[:, None], harmonics, modulation=modulation)[1]
-
-
-def _fibonacci_poles(count: int) -> list[tuple[float, float]]:
-    """``count`` nearly uniform directions (λ, β) (rad) on the sphere (Fibonacci lattice)."""
-    index = np.arange(count) + 0.5
-    latitude = np.arcsin(1 - 2 * index / count)
-    longitude = np.mod(np.pi * (1 + 5**0.5) * index, 2 * np.pi)
-    return [(float(a), float(b)) for a, b in zip(longitude, latitude, strict=True)]
-
-
-def _rotator_designs(
-    data: StackedLightCurves, trend_degree: int, frequencies: Sequence[float], step: float
-) -> list[FourierDesign]:
-    """Designs of the one-period rival: the plain phase ``2π f t`` and the PAB phases
-    ``2π f t − Λ_p(t)`` (:func:`~lightcurve.analysis.period.pab_longitude`) of the
-    ``ROTATOR_CANDIDATES`` poles p (of ``ROTATOR_POLES`` on the sphere) that fit best near
-    ``frequencies`` at order ``ROTATOR_SCREEN_ORDER``."""
-
-    def design(offset: np.ndarray | None) -> FourierDesign:
-        return FourierDesign(
-            data.times,
-            data.magnitudes,
-            data.sigma,
-            data.curve,
-            offset,
-            trend_degree=trend_degree,
-        )
-
-    harmonics = np.arange(1, ROTATOR_SCREEN_ORDER + 1)[:, None]
-    grid = np.concatenate([f + step * np.linspace(-1, 1, 9) for f in frequencies])
-    screened = []
-    for pole in _fibonacci_poles(ROTATOR_POLES):
-        candidate = design(pab_longitude(data.sun, data.observer, pole))
-        chi2 = _modulated_chi2(candidate, grid, harmonics, MODULATION_DEGREE)
-        screened.append((float(chi2.min()), candidate))
-    screened.sort(key=lambda item: item[0])
-    return [design(None)] + [d for _, d in screened[:ROTATOR_CANDIDATES]]
-
-
 def _rebases(pair: np.ndarray) -> list[np.ndarray]:
     """The pair and its unimodular re-bases and halves (module docstring)."""
     f1, f2 = pair
@@ -486,7 +413,8 @@ def tumbling_search(
         Two-period orders m tried (BIC chooses).
     single_orders : sequence of int
         Harmonic orders of the one-period scan that gives the dominant frequency (one order
-        keeps it fast; the one-period rival is judged at ``SINGLE_HARMONICS`` as well).
+        keeps it fast; the one-period rival is judged at more,
+        :func:`~lightcurve.analysis.rotator_rival.rotator_bic`).
     oversample : float
         Coarse-scan frequency step ``1/(oversample · T)``.
     max_coarse_points : int
@@ -589,15 +517,12 @@ def tumbling_search(
     hessian = _hessian(local, h)
     chi2 = float(local[1, 1])
     best_bic = full.bic(chi2, order)
-    # The one-period rival gets as many harmonics as the two-period lattice reaches; its
-    # fixed-shape form (plain phase) and its slowly changing forms all compete by BIC.
-    rival_frequencies = [f for f in (f0, f0 / 2) if f >= f_min]
-    designs = _rotator_designs(data, trend_degree, rival_frequencies, step)
-    single_bic = min(
-        _single_bic(design, f, order, step, modulation=modulation)
-        for design, modulation in [(designs[0], 0)] + [(d, MODULATION_DEGREE) for d in designs]
-        for f in rival_frequencies
-        for order in sorted({*single_orders, *SINGLE_HARMONICS})
+    single_bic = rotator_bic(
+        data,
+        [f for f in (f0, f0 / 2) if f >= f_min],
+        step,
+        trend_degree=trend_degree,
+        orders=single_orders,
     )
     delta_bic = float(single_bic - best_bic)
     swap = bool(pair[0] < pair[1])
