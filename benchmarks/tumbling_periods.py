@@ -31,8 +31,10 @@ Sections:
     0.03 mag) from a geostationary slot, its period growing linearly by 0.5 % over the 30
     nights from ``DRIFT_PERIOD_H``, and the same rotator at a constant period: the relative
     error and sign of the recovered ``Ṗ`` (sidereal nightly periods about the known spin
-    axis, :func:`spin_pole`), and the fraction of constant runs with
-    ``|Ṗ| < 2σ``.
+    axis, :func:`spin_pole`, each with the PAB approximation's systematic error of
+    :func:`lightcurve.analysis.drift.night_periods`), and the fraction of constant runs with
+    ``|Ṗ| < 2σ``. The attitude at each night's start is the same (the rotation phase is not
+    carried across nights: the nightly fits do not use it).
 
     python -m benchmarks.tumbling_periods [--runs 50] [--seed 0] [--sections …]
 """

@@ -4,8 +4,12 @@ Modules
 -------
 - :mod:`~lightcurve.analysis.period` — rotation-period search: multi-harmonic Fourier
   periodogram, aliases, sidereal correction.
+- :mod:`~lightcurve.analysis.fourier_design` — the weighted least-squares design of Fourier
+  series in one or more frequencies with per-curve trends (shared by the two searches).
 - :mod:`~lightcurve.analysis.tumbling` — two-period analysis of tumblers (two-dimensional
   Fourier series, precession and rotation periods).
+- :mod:`~lightcurve.analysis.rotator_rival` — the one-period rival of the two-period
+  analysis: a rotator whose light curve changes with the geometry.
 - :mod:`~lightcurve.analysis.drift` — per-night periods and their drift (spin-down).
 - :mod:`~lightcurve.analysis.spin` — principal-axis spin states (DAMIT convention) and
   simulated rotators.

@@ -22,25 +22,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lightcurve.analysis.period import period_search
+from lightcurve.analysis.period import pab_rate, period_search
 from lightcurve.analysis.tumbling import tumbling_search
 from lightcurve.io.observations import Observations
 
 __all__ = ["DriftResult", "NightPeriod", "fit_drift", "night_periods", "period_drift"]
 
 SECONDS_PER_DAY = 86400.0
+#: 1σ of a night's sidereal period from the phase-angle-bisector approximation, as a
+#: fraction of the night's synodic–sidereal correction ``P² |Λ̇| / 2π``.
+PAB_SYSTEMATIC = 1.0
 
 
 @dataclass(frozen=True)
 class NightPeriod:
-    """The period of one file: ``mjd`` (mean epoch), ``period_h`` and ``sigma_h`` (1σ), and
-    ``series`` (``"period"``, or ``"shorter"``/``"longer"`` of a two-period fit)."""
+    """The period of one file: ``mjd`` (mean epoch), ``period_h`` and ``sigma_h`` (1σ of the
+    fit), ``systematic_h`` (1σ of the geometry's effect, :func:`night_periods`; 0 when not
+    estimated) and ``series`` (``"period"``, or ``"shorter"``/``"longer"`` of a two-period
+    fit)."""
 
     file: str
     series: str
     mjd: float
     period_h: float
     sigma_h: float
+    systematic_h: float = 0.0
+
+    @property
+    def total_sigma_h(self) -> float:
+        """The fit's and the geometry's 1σ in quadrature (h)."""
+        return math.hypot(self.sigma_h, self.systematic_h)
 
 
 @dataclass(frozen=True)
@@ -128,7 +139,7 @@ def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> Drif
             )
     days = np.array([n.mjd for n in nights])
     period_s = np.array([n.period_h for n in nights]) * 3600.0
-    sigma_s = np.array([n.sigma_h for n in nights]) * 3600.0
+    sigma_s = np.array([n.total_sigma_h for n in nights]) * 3600.0
     w = 1.0 / sigma_s**2
     reference = float(np.sum(w * days) / np.sum(w))
     x = days - reference
@@ -199,7 +210,13 @@ def night_periods(
                 out.append(NightPeriod(name, series, mjd, float(p), float(s)))
         else:
             result = period_search(obs, period_range_h, pole=pole)
-            out.append(NightPeriod(name, "period", mjd, result.period_h, result.sigma_h))
+            systematic = 0.0
+            if pole is not None:
+                rate = pab_rate(obs.mjd, obs.sun_vectors, obs.observer_vectors, pole)
+                systematic = PAB_SYSTEMATIC * result.period_h**2 * abs(rate) / (2 * math.pi)
+            out.append(
+                NightPeriod(name, "period", mjd, result.period_h, result.sigma_h, systematic)
+            )
     return out
 
 

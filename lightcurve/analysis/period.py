@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from filters.attitude import rotate
+from lightcurve.analysis.fourier_design import FourierDesign
 from lightcurve.analysis.spin import pole_quaternion
 from lightcurve.io.observations import Observations
 from lightcurve.sky.geometry import phase_angle_bisector
@@ -44,6 +45,7 @@ __all__ = [
     "fourier_chi2",
     "lomb_scargle_period",
     "pab_longitude",
+    "pab_rate",
     "period_search",
     "synodic_to_sidereal",
 ]
@@ -179,6 +181,26 @@ def pab_longitude(sun: np.ndarray, observer: np.ndarray, pole: tuple[float, floa
     return np.arctan2(in_pole_frame[:, 1], in_pole_frame[:, 0])
 
 
+def pab_rate(
+    mjd: np.ndarray, sun: np.ndarray, observer: np.ndarray, pole: tuple[float, float]
+) -> float:
+    """Mean rate Λ̇ (rad/h) of the PAB longitude about a pole over the epochs: the
+    least-squares slope of the unwrapped :func:`pab_longitude` (0 for a single epoch).
+
+    Parameters
+    ----------
+    mjd : (n,) float
+    sun, observer : (n, 3) float
+        Object → Sun and object → observer vectors (inertial).
+    pole : (λ, β)
+        Pole (rad); a positive rotation about it.
+    """
+    order = np.argsort(mjd)
+    longitude = np.unwrap(pab_longitude(sun[order], observer[order], pole))
+    hours = (np.asarray(mjd)[order] - mjd[order][0]) * 24.0
+    return float(np.polyfit(hours, longitude, 1)[0]) if len(hours) > 1 else 0.0
+
+
 def synodic_to_sidereal(
     period_h: float,
     mjd: np.ndarray,
@@ -186,10 +208,7 @@ def synodic_to_sidereal(
     observer: np.ndarray,
     pole: tuple[float, float],
 ) -> float:
-    """Sidereal period from a synodic one: ``1/P_sid = 1/P_syn + Λ̇/2π``.
-
-    Λ̇ is the mean rate of the PAB longitude about the pole over the epochs (least-squares
-    slope of the unwrapped longitude).
+    """Sidereal period from a synodic one: ``1/P_sid = 1/P_syn + Λ̇/2π`` (:func:`pab_rate`).
 
     Parameters
     ----------
@@ -206,92 +225,7 @@ def synodic_to_sidereal(
     float
         Sidereal period (h).
     """
-    order = np.argsort(mjd)
-    longitude = np.unwrap(pab_longitude(sun[order], observer[order], pole))
-    hours = (np.asarray(mjd)[order] - mjd[order][0]) * 24.0
-    rate = np.polyfit(hours, longitude, 1)[0] if len(hours) > 1 else 0.0
-    return 1.0 / (1.0 / period_h + rate / (2 * math.pi))
-
-
-class FourierDesign:
-    """Weighted least squares of a Fourier model with per-curve offsets (shared setup).
-
-    The model is a sum of terms ``a cos(n·ψ) + b sin(n·ψ)`` over integer combination vectors
-    ``n`` of one or more phases ``ψ_d = 2π f_d t`` (the first one minus ``phase_offset``):
-    one phase with ``n = 1..K`` is the K-harmonic series of :func:`period_search`, two
-    phases with the combinations ``j f1 + k f2`` are the two-period series of
-    :mod:`lightcurve.analysis.tumbling`. The offsets are eliminated by weighted demeaning
-    within each curve, so every trial needs only a ``2P × 2P`` system for P terms.
-    """
-
-    def __init__(self, times, values, sigma, curve, phase_offset=None) -> None:
-        self.t = np.asarray(times, float) - float(np.min(times))
-        self.w = 1.0 / np.asarray(sigma, float) ** 2
-        _, index = np.unique(curve, return_inverse=True)
-        self.n_curves = int(index.max()) + 1
-        self.one_hot = np.zeros((len(index), self.n_curves))
-        self.one_hot[np.arange(len(index)), index] = 1.0
-        self.weight_sum = np.bincount(index, self.w)
-        self.y = self._demean(values)
-        self.base = float(np.sum(self.w * self.y * self.y))
-        self.offset = 0.0 if phase_offset is None else np.asarray(phase_offset, float)
-
-    def _demean(self, x: np.ndarray) -> np.ndarray:
-        """Subtract each curve's weighted mean along the last axis."""
-        x = np.asarray(x, float)
-        means = ((x * self.w) @ self.one_hot) / self.weight_sum
-        return x - means @ self.one_hot.T
-
-    def solve(self, frequencies: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
-        """Coefficients ``[a_1..a_K, b_1..b_K]`` (n, 2K) and χ² (n,) at each frequency."""
-        harmonics = np.arange(1, order + 1)[:, None]
-        return self.solve_combinations(np.asarray(frequencies, float)[:, None], harmonics)
-
-    def solve_combinations(
-        self, frequencies: np.ndarray, combinations: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Coefficients ``[a_1..a_P, b_1..b_P]`` (n, 2P) and χ² (n,) of the terms
-        ``a_p cos(n_p·ψ) + b_p sin(n_p·ψ)``.
-
-        Parameters
-        ----------
-        frequencies : (n, D) float
-            Trial frequency tuples (Hz), one row per trial.
-        combinations : (P, D) int
-            Integer combination vectors ``n_p`` of the D phases (none all zero, no two of
-            opposite sign).
-
-        Returns
-        -------
-        coefficients : (n, 2P) float
-        chi2 : (n,) float
-        """
-        f = np.asarray(frequencies, float)
-        combinations = np.asarray(combinations, int)
-        # e^{i n·ψ} as products of integer powers of e^{iψ_d}: one complex exponential per
-        # phase and point, the powers by repeated multiplication (negative ones conjugate).
-        z = np.ones((len(f), len(combinations), len(self.t)), complex)
-        for d in range(f.shape[1]):
-            psi = 2 * np.pi * f[:, d, None] * self.t[None, :] - (self.offset if d == 0 else 0.0)
-            first = np.exp(1j * psi)
-            largest = int(np.max(np.abs(combinations[:, d])))
-            powers = [np.ones_like(first), first]
-            for _ in range(largest - 1):
-                powers.append(powers[-1] * first)
-            for p, n in enumerate(combinations[:, d]):
-                if n:
-                    z[:, p] *= powers[n] if n > 0 else np.conj(powers[-n])
-        x = np.concatenate([z.real, z.imag], axis=1)
-        xw = x * self.w
-        # The demeaned design's Gram matrix without forming it: X W Xᵀ minus, per curve,
-        # (X W 1_c)(X W 1_c)ᵀ / W_c; the data are demeaned already, so X W y needs nothing.
-        sums = xw @ self.one_hot
-        gram = xw @ x.transpose(0, 2, 1) - (sums / self.weight_sum) @ sums.transpose(0, 2, 1)
-        rhs = xw @ self.y
-        size = 2 * len(combinations)
-        gram += 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(size)
-        solution = np.linalg.solve(gram, rhs[..., None])[..., 0]
-        return solution, self.base - np.sum(solution * rhs, axis=1)
+    return 1.0 / (1.0 / period_h + pab_rate(mjd, sun, observer, pole) / (2 * math.pi))
 
 
 def fourier_chi2(
@@ -374,6 +308,7 @@ def period_search(
     oversample: float = 10.0,
     pole: tuple[float, float] | None = None,
     n_peaks: int = 5,
+    trend_degree: int = 0,
     progress: Callable[[int, int], None] | None = None,
 ) -> PeriodResult:
     """Search the rotation period of one or more observation files.
@@ -395,6 +330,9 @@ def period_search(
         the PAB-corrected phase.
     n_peaks : int
         Other periodogram minima reported besides the structural aliases.
+    trend_degree : int
+        Degree of each curve's Legendre polynomial in time (0: a zero point only), the slow
+        change of the mean brightness with the geometry (:class:`FourierDesign`).
     progress : callable, optional
         Called as ``progress(trials_done, trials_total)`` while the χ² curves are computed
         (one trial per frequency and harmonic order).
@@ -438,7 +376,7 @@ def period_search(
     frequencies = np.linspace(f_min, f_max, count)
     offset = None if pole is None else pab_longitude(sun, observer, pole)
 
-    design = FourierDesign(times, mags, sigma, curve, offset)
+    design = FourierDesign(times, mags, sigma, curve, offset, trend_degree=trend_degree)
 
     def chi2(freqs: np.ndarray, order: int) -> np.ndarray:
         freqs = np.atleast_1d(freqs)
@@ -446,11 +384,11 @@ def period_search(
             [design.solve(freqs[i : i + 256], order)[1] for i in range(0, len(freqs), 256)]
         )
 
-    n_curves = len(np.unique(curve))
+    n_nuisance = design.n_nuisance
     n = len(times)
 
     def bic(c: float, order: int) -> float:
-        return c + (2 * order + n_curves + 1) * math.log(n)
+        return c + (2 * order + n_nuisance + 1) * math.log(n)
 
     curves = {}
     for done, order in enumerate(orders):
@@ -499,7 +437,7 @@ def period_search(
     )
     b0, f0, order0, c0 = entries[kind_best]
     _, _, curvature = refine(f0, order0)
-    reduced = max(c0 / max(n - 2 * order0 - n_curves, 1), 1.0)
+    reduced = max(c0 / max(n - 2 * order0 - n_nuisance, 1), 1.0)
     sigma_f = math.sqrt(2.0 * reduced / curvature) if curvature > 0 else float("inf")
     period_h = 1.0 / f0 / 3600.0
     sigma_h = sigma_f / f0**2 / 3600.0

@@ -9,15 +9,26 @@ eq. 1) ::
     m(t) = m_c + Σ_{(j,k)} [C_jk cos(2π(j f1 + k f2) t) + S_jk sin(2π(j f1 + k f2) t)]
 
 over ``0 ≤ j ≤ m``, ``−m ≤ k ≤ m``, ``|j| + |k| ≤ m``, ``(j, k) ≠ (0, 0)`` and one of
-``±(j, k)`` (:func:`two_period_combinations`), with one zero point ``m_c`` per light curve.
-At fixed (f1, f2) the fit is linear (:class:`~lightcurve.analysis.period.FourierDesign`,
-batched over trial pairs); the order m is chosen by the BIC ``χ² + p ln N``, ``p`` counting
-the coefficients, the zero points and the two frequencies.
+``±(j, k)`` (:func:`two_period_combinations`), where ``m_c`` is, per light curve, a
+Legendre polynomial of degree ``TREND_DEGREE`` in its scaled time (the mean brightness
+follows range and phase angle over a night or a pass), and terms slower than
+``MIN_SEPARATION_CYCLES`` per span are left out (they would duplicate it). At fixed
+(f1, f2) the fit is linear (:class:`~lightcurve.analysis.period.FourierDesign`, batched
+over trial pairs); the order m is chosen by the BIC ``χ² + p ln N``, ``p`` counting the
+coefficients, the trend terms and the two frequencies.
+
+The one-period rival has the same trend and three forms, all judged by the BIC: fixed
+coefficients; coefficients that change within each curve as Legendre polynomials of degree
+``MODULATION_DEGREE`` (the light curve's shape follows the aspect); and the latter with the
+phase ``2π f t − Λ_p(t)``, Λ_p the phase-angle-bisector longitude about a trial pole p
+(the synodic drift of a rotator's phase as the geometry moves: Harris et al. 1984, Icarus
+57, 251; Pravec et al. 2005, sec. 2), over a lattice of trial poles
+(:func:`~lightcurve.analysis.rotator_rival.rotator_bic`).
 
 The search (:func:`tumbling_search`):
 
-1. the single-period search (:func:`~lightcurve.analysis.period.period_search`) gives the
-   dominant frequency f0 and the one-period BIC;
+1. the single-period search (:func:`~lightcurve.analysis.period.period_search`, one order)
+   gives the dominant frequency f0;
 2. coarse scan: f1 over f0, f0/2, 2 f0 and the next deepest one-period minima (and their
    halves), f2 over the whole grid of step ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
@@ -29,9 +40,10 @@ The search (:func:`tumbling_search`):
    at every order by the BIC on all points; the winner is taken to its minimum on all
    points, where the Hessian ``H`` of χ² (central differences) gives the covariance
    ``2 χ²_ν H⁻¹`` of (f1, f2);
-4. the verdict: **tumbling** when the two-period fit beats the one-period one by
-   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are not
-   commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
+4. the verdict: **tumbling** when the two-period fit beats the one-period rival by
+   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are resolved
+   (``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T`` for ``(p, q)`` in ``RESOLVED_RATIOS``)
+   and not commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
    ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one).
 
 Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
@@ -57,7 +69,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize
 
 from lightcurve.analysis.period import (
     FourierDesign,
@@ -65,6 +77,7 @@ from lightcurve.analysis.period import (
     StackedLightCurves,
     period_search,
 )
+from lightcurve.analysis.rotator_rival import rotator_bic
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -79,14 +92,19 @@ __all__ = [
 #: ΔBIC (one-period minus two-period) above which the second frequency is significant
 #: ("very strong" evidence, Kass & Raftery 1995, J. Am. Stat. Assoc. 90, 773).
 SIGNIFICANT_DELTA_BIC = 10.0
+#: Degree of each light curve's Legendre polynomial in time in both series: the slow change
+#: of the mean brightness with range and phase angle over a night or a pass.
+TREND_DEGREE = 3
 #: Two frequencies with ``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` (p, q ≤
 #: ``COMMENSURATE_MAX``) are harmonics of one period, not two periods (T: the time span).
 COMMENSURATE_RESOLUTION = 0.25
 #: The two frequencies must differ by at least this many cycles over the time span T
-#: (closer ones beat into a slow modulation the arc cannot resolve as a period).
+#: (closer ones beat into a slow modulation the arc cannot resolve as a period), and so
+#: must one and the double or half of the other: a rotator's first and second harmonics,
+#: drifting in phase as the geometry changes, otherwise pass for two periods.
 MIN_SEPARATION_CYCLES = 1.5
-#: Harmonic orders of the one-period rival judged on all points (besides ``single_orders``).
-SINGLE_HARMONICS = (8, 10, 12, 16)
+#: The ratios ``(p, q)`` of that test, ``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T``.
+RESOLVED_RATIOS = ((1, 1), (1, 2), (2, 1))
 #: Largest numerator and denominator of the commensurability test.
 COMMENSURATE_MAX = 6
 #: The second frequency is searched within this factor of the dominant one.
@@ -246,29 +264,42 @@ def euler_reading(
 class _TwoPeriodFit:
     """χ² of the two-period series at trial pairs, on all points or the subset ``keep``."""
 
-    def __init__(self, data: StackedLightCurves, keep: np.ndarray | slice = slice(None)) -> None:
+    def __init__(
+        self,
+        data: StackedLightCurves,
+        trend_degree: int,
+        keep: np.ndarray | slice = slice(None),
+    ) -> None:
         self.design = FourierDesign(
-            data.times[keep], data.magnitudes[keep], data.sigma[keep], data.curve[keep]
+            data.times[keep],
+            data.magnitudes[keep],
+            data.sigma[keep],
+            data.curve[keep],
+            trend_degree=trend_degree,
         )
         self.n = len(self.design.t)
+        # Combination terms slower than the trend resolves are left out of the series.
+        self.slowest = MIN_SEPARATION_CYCLES / float(np.ptp(data.times))
 
     def chi2(self, pairs: np.ndarray, order: int) -> np.ndarray:
         pairs = np.atleast_2d(pairs)
         combos = two_period_combinations(order)
         return np.concatenate(
             [
-                self.design.solve_combinations(pairs[i : i + _CHUNK], combos)[1]
+                self.design.solve_combinations(pairs[i : i + _CHUNK], combos, slowest=self.slowest)[
+                    1
+                ]
                 for i in range(0, len(pairs), _CHUNK)
             ]
         )
 
     def coefficients(self, pair: np.ndarray, order: int) -> np.ndarray:
         return self.design.solve_combinations(
-            np.asarray(pair, float)[None], two_period_combinations(order)
+            np.asarray(pair, float)[None], two_period_combinations(order), slowest=self.slowest
         )[0][0]
 
     def bic(self, chi2: float, order: int) -> float:
-        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_curves + 2
+        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_nuisance + 2
         return chi2 + n_parameters * math.log(self.n)
 
 
@@ -323,18 +354,6 @@ def _subset(n: int, fraction: float) -> np.ndarray:
     return np.sort(np.random.default_rng(n).choice(n, size, replace=False))
 
 
-def _single_bic(design: FourierDesign, f0: float, order: int, step: float) -> float:
-    """BIC of the K-harmonic one-period series at its χ² minimum within ``f0 ± step``."""
-    result = minimize_scalar(
-        lambda f: float(design.solve(np.array([f]), order)[1][0]),
-        bounds=(f0 - step, f0 + step),
-        method="bounded",
-        options={"xatol": 1e-4 * step},
-    )
-    n_parameters = 2 * order + design.n_curves + 1
-    return float(result.fun) + n_parameters * math.log(len(design.t))
-
-
 def _rebases(pair: np.ndarray) -> list[np.ndarray]:
     """The pair and its unimodular re-bases and halves (module docstring)."""
     f1, f2 = pair
@@ -361,11 +380,13 @@ def _commensurate(pair: np.ndarray, span_s: float) -> bool:
 
 
 def _admissible(pair: np.ndarray, span_s: float) -> bool:
-    """Two frequencies that can be two periods: apart by ``MIN_SEPARATION_CYCLES / T`` and
-    not commensurate."""
-    return abs(pair[0] - pair[1]) * span_s >= MIN_SEPARATION_CYCLES and not _commensurate(
-        pair, span_s
-    )
+    """Two frequencies that can be two periods: each apart from the other and from its
+    double and half by ``MIN_SEPARATION_CYCLES / T`` (``|q f2 − p f1|`` for ``(p, q)`` in
+    ``RESOLVED_RATIOS``), and not commensurate."""
+    f1, f2 = pair
+    return all(
+        abs(q * f2 - p * f1) * span_s >= MIN_SEPARATION_CYCLES for p, q in RESOLVED_RATIOS
+    ) and not _commensurate(pair, span_s)
 
 
 def tumbling_search(
@@ -373,9 +394,10 @@ def tumbling_search(
     period_range_h: tuple[float, float] | None = None,
     *,
     orders: Sequence[int] = (2, 3, 4, 5, 6),
-    single_orders: Sequence[int] = (2, 3, 4, 5, 6),
+    single_orders: Sequence[int] = (4,),
     oversample: float = 3.0,
     max_coarse_points: int = 2000,
+    trend_degree: int = TREND_DEGREE,
     progress: Callable[[int, int], None] | None = None,
 ) -> TumblingResult:
     """Two-period (tumbling) analysis of one or more observation files (module docstring).
@@ -390,11 +412,15 @@ def tumbling_search(
     orders : sequence of int
         Two-period orders m tried (BIC chooses).
     single_orders : sequence of int
-        Harmonic orders of the one-period search.
+        Harmonic orders of the one-period scan that gives the dominant frequency (one order
+        keeps it fast; the one-period rival is judged at more,
+        :func:`~lightcurve.analysis.rotator_rival.rotator_bic`).
     oversample : float
         Coarse-scan frequency step ``1/(oversample · T)``.
     max_coarse_points : int
         Points of the coarse scan (a seeded random subset); the refinement uses all.
+    trend_degree : int
+        Degree of each light curve's polynomial in time, in both series (module docstring).
     progress : callable, optional
         ``progress(rows_done, rows_total)`` over the coarse scan's rows.
 
@@ -421,6 +447,7 @@ def tumbling_search(
         period_range_h,
         orders=single_orders,
         oversample=oversample,
+        trend_degree=trend_degree,
     )
     low, high = sorted(float(v) for v in period_range_h)
     f_min, f_max = 1.0 / (high * 3600.0), 1.0 / (low * 3600.0)
@@ -438,7 +465,7 @@ def tumbling_search(
     for f in peaks[:_EXTRA_FIRST]:
         first += [f, f / 2]
     first = np.array([f for f in first if f_min <= f <= f_max])
-    coarse = _TwoPeriodFit(data, _subset(n, fraction))
+    coarse = _TwoPeriodFit(data, trend_degree, _subset(n, fraction))
     scan = np.empty((len(first), len(second)))
     allowed = np.zeros(scan.shape, bool)
     for row, f1 in enumerate(first):
@@ -462,7 +489,7 @@ def tumbling_search(
             break
     # Local minima on the coarse points; every re-base of each (the same lattice, so the
     # same minimum) and order judged by BIC on all points; the winner refined there.
-    full = _TwoPeriodFit(data)
+    full = _TwoPeriodFit(data, trend_degree)
     # Admissible options first (when there are any), then by BIC.
     options = [
         (
@@ -490,12 +517,12 @@ def tumbling_search(
     hessian = _hessian(local, h)
     chi2 = float(local[1, 1])
     best_bic = full.bic(chi2, order)
-    # The one-period rival gets as many harmonics as the two-period lattice reaches.
-    single_bic = min(
-        _single_bic(full.design, f, order, step)
-        for f in (f0, f0 / 2)
-        if f >= f_min
-        for order in sorted({*single_orders, *SINGLE_HARMONICS})
+    single_bic = rotator_bic(
+        data,
+        [f for f in (f0, f0 / 2) if f >= f_min],
+        step,
+        trend_degree=trend_degree,
+        orders=single_orders,
     )
     delta_bic = float(single_bic - best_bic)
     swap = bool(pair[0] < pair[1])

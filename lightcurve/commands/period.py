@@ -270,7 +270,7 @@ def _plot_two_periods(result, path: Path) -> None:
 
 
 def _plot_drift(nights, drifts, path: Path) -> None:
-    """Per-night periods with 1σ bars and each fitted drift."""
+    """Per-night periods with 1σ bars (the fit's and the geometry's) and each fitted drift."""
     plt = _figure()
     fig, ax = plt.subplots(figsize=(8, 4))
     for k, fit in enumerate(drifts):
@@ -279,7 +279,7 @@ def _plot_drift(nights, drifts, path: Path) -> None:
         ax.errorbar(
             mjd,
             [n.period_h * 3600 for n in rows],
-            yerr=[n.sigma_h * 3600 for n in rows],
+            yerr=[n.total_sigma_h * 3600 for n in rows],
             fmt="o",
             ms=3,
             color=f"C{k}",

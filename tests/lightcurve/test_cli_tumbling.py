@@ -78,7 +78,7 @@ def test_drift_table_plot_and_derivative(tmp_path):
     # Without --tumbling the two-period search does not run: its keys are null.
     assert summary["tumbling"] is None and summary["periods_h"] is None
     table = pd.read_csv(out / "night_periods.csv")
-    assert list(table.columns) == ["file", "series", "mjd", "period_h", "sigma_h"]
+    assert list(table.columns) == ["file", "series", "mjd", "period_h", "sigma_h", "systematic_h"]
     assert len(table) == 3
     assert (out / "night_periods.png").stat().st_size > 1000
 

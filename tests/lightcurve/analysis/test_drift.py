@@ -1,9 +1,17 @@
 """Spin-rate drift: per-night periods and the polynomial through them."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from lightcurve.analysis.drift import NightPeriod, fit_drift, period_drift
+from lightcurve.analysis.drift import (
+    PAB_SYSTEMATIC,
+    NightPeriod,
+    fit_drift,
+    night_periods,
+    period_drift,
+)
+from lightcurve.io.observations import Observations, validate_table
 from tests.lightcurve._spin_down import spin_down_nights
 
 
@@ -52,3 +60,45 @@ def test_period_drift_over_files_recovers_a_spin_down():
     nights, (fit,) = period_drift(spin_down_nights(6), (0.12, 0.25))
     assert len(nights) == 6 and fit.series == "period"
     assert fit.period_derivative_s_per_day == pytest.approx(6.0, rel=0.05)
+
+
+def _turning_observer_night(rate_rad_h: float, period_s: float = 600.0) -> Observations:
+    """A 2-h night of a double-peaked rotator (pole: inertial z) while the observer turns
+    about z at ``rate_rad_h`` and the Sun stays on x: the PAB turns at half that rate."""
+    t = np.arange(0.0, 7200.0, 20.0)
+    mag = 0.3 * np.cos(4 * np.pi * t / period_s) + 0.1 * np.cos(2 * np.pi * t / period_s)
+    mag = mag + np.random.default_rng(8).normal(0, 0.01, len(t))
+    angle = rate_rad_h * t / 3600.0 + 0.5
+    table = pd.DataFrame(
+        {
+            "mjd": 61000.0 + t / 86400.0,
+            "mag": mag,
+            "mag_err": 0.01,
+            "sun_x": 1.5e8,
+            "sun_y": 0.0,
+            "sun_z": 0.0,
+            "obs_x": 4e4 * np.cos(angle),
+            "obs_y": 4e4 * np.sin(angle),
+            "obs_z": 0.0,
+        }
+    )
+    return Observations(validate_table(table, "turning"), {}, "turning.csv")
+
+
+def test_sidereal_nights_carry_the_pab_systematic():
+    """With a pole, each night's error includes PAB_SYSTEMATIC · P² |Λ̇| / 2π; the drift
+    fit weights the nights by the total."""
+    rate = 0.3  # rad/h of the observer; the bisector turns at 0.15 rad/h
+    (night,) = night_periods([_turning_observer_night(rate)], (0.12, 0.25), pole=(0.0, np.pi / 2))
+    expected = PAB_SYSTEMATIC * night.period_h**2 * (rate / 2) / (2 * np.pi)
+    assert night.systematic_h == pytest.approx(expected, rel=0.05)
+    assert night.total_sigma_h == pytest.approx(np.hypot(night.sigma_h, expected), rel=0.05)
+    (plain,) = night_periods([_turning_observer_night(rate)], (0.12, 0.25))
+    assert plain.systematic_h == 0.0
+    # A night with a large systematic weighs little: the line follows the other two.
+    nights = [
+        NightPeriod("a", "period", 0.0, 0.1, 1e-6),
+        NightPeriod("b", "period", 1.0, 0.2, 1e-6, 1.0),
+        NightPeriod("c", "period", 2.0, 0.1, 1e-6),
+    ]
+    assert abs(fit_drift(nights).period_derivative_s_per_day) < 1e-3

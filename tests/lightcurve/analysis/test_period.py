@@ -8,6 +8,7 @@ import pytest
 
 from lightcurve import io
 from lightcurve.analysis.period import (
+    FourierDesign,
     fourier_chi2,
     pab_longitude,
     period_search,
@@ -50,6 +51,35 @@ def test_fourier_chi2_is_zero_for_an_exact_model_with_offsets():
     # Without the per-night offsets the same data do not fit.
     one_curve = fourier_chi2(t, mag, np.full(300, 0.01), np.zeros(300), np.array([f]), order=3)
     assert one_curve[0] > 1e3
+
+
+def test_design_trend_modulation_and_slow_terms():
+    """Per-curve cubic trends are projected out exactly; a linearly changing amplitude is
+    what ``modulation=1`` fits; terms slower than ``slowest`` get no coefficient."""
+    rng = np.random.default_rng(11)
+    t = np.sort(rng.uniform(0, 2 * 86400, 400))
+    curve = (t // 86400).astype(int)
+    tau = 2 * (t - 86400 * curve) / 86400 - 1  # each curve's time on [-1, 1] (nearly)
+    f = 1 / 3000.0
+    psi = 2 * np.pi * f * t
+    trend = 0.4 * tau**3 - 0.2 * tau + curve
+    sigma = np.full(len(t), 0.01)
+    chi2 = {
+        degree: FourierDesign(
+            t, 0.3 * np.cos(2 * psi) + trend, sigma, curve, trend_degree=degree
+        ).solve(np.array([f]), 2)[1][0]
+        for degree in (1, 3)
+    }
+    assert abs(chi2[3]) < 1e-4 and chi2[1] > 1e3
+    growing = (0.3 + 0.1 * (t - 86400 * curve) / 86400) * np.cos(2 * psi)
+    design = FourierDesign(t, growing, sigma, curve)
+    harmonics = np.array([[1], [2]])
+    plain = design.solve_combinations(np.array([[f]]), harmonics)[1][0]
+    modulated = design.solve_combinations(np.array([[f]]), harmonics, modulation=1)[1][0]
+    assert abs(modulated) < 1e-2 and plain > 1e3
+    pair = np.array([[f, 2 * f + 1e-7]])  # (2, -1) is a 0.02-cycle term over the span
+    coefficients, _ = design.solve_combinations(pair, np.array([[1, 0], [2, -1]]), slowest=1e-6)
+    assert coefficients[0, 1] == 0 and coefficients[0, 3] == 0 and coefficients[0, 0] != 0
 
 
 def test_multi_night_relative_light_curves_give_the_period_and_its_error():
