@@ -17,7 +17,22 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Jan�
     two such arcs of the same object on two nights (another start state each), fitted
     together;
 ``geo_night``
-    a stabilised (nadir-pointing, fixed random offset) object over a 6-hour night at 30 s.
+    a stabilised (nadir-pointing, fixed random offset) object over a 6-hour night at 30 s;
+``leo_pass`` and ``leo_two_passes``
+    the longest observable pass (at least 5 minutes, 2 s) of a low circular orbit over one
+    night (:func:`benchmarks.mismatch_study.leo_geometry`), the object tumbling as above: the
+    phase angle sweeps tens of degrees in a pass, where a geostationary arc keeps it within
+    a few; one pass, or two passes on two nights fitted together;
+``geo_joint``
+    the ``geo_tumbling`` arc with the attitude **unknown**: the joint mode
+    (:func:`lightcurve.analysis.egi.joint.fit_joint`, material given, from the ellipsoid).
+    The recovered frame is arbitrary, so the attitudes are compared after the constant
+    rotation ``R`` (proper, :func:`frame_alignment`) that best maps the fitted attitude
+    matrices onto the true ones over the arc (``A_true ≈ R A_fit``); ``attitude_error_deg``
+    is the angle of ``A_true Aᵀ_fit Rᵀ`` at the last epoch, and the held-out arc is
+    predicted at its true attitudes by the recovered mesh turned by ``R``. A light curve
+    cannot tell a shape from its mirror image under mirrored attitudes; the best improper
+    alignment's last-epoch error is printed too (``mirror_attitude_error_deg``).
 
 Each run draws the object's state and the noise (0.02–0.05 mag, uniform) from
 ``default_rng([seed, run, k])``; a second arc of the same object (another night, another
@@ -41,7 +56,7 @@ refinements and polishes); and the **baseline** measured in the same run: the pl
 held-out ratio and normal errors on the first ``geo_tumbling`` runs against the full fit's.
 
     python -m benchmarks.shape_recovery [--runs 2] [--seed 34] [--sections geo_tumbling,...]
-        [--normals 2000] [--out FILE]
+        [--normals 2000] [--materials fitted,known] [--objects box_3x2x1,...] [--out FILE]
 """
 
 from __future__ import annotations
@@ -57,19 +72,29 @@ import brdf
 from benchmarks._machine import machine_info
 from benchmarks._report import add_sections_argument, emit_report
 from benchmarks._timing import best_time
-from benchmarks.mismatch_study import geo_geometry
-from filters.attitude import random_quaternion
+from benchmarks.mismatch_study import geo_geometry, leo_geometry
+from filters.attitude import attitude_matrix, random_quaternion
 from lightcurve.analysis.convex.minkowski import equivalent_ellipsoid
 from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_material, normal_grid
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import design_matrix
+from lightcurve.analysis.egi.joint import fit_joint
 from lightcurve.io.observations import Observations
 from lightcurve.photometry.render import Renderer
 from lightcurve.photometry.simulate import GaussianNoise, simulate
 from shapes import FacetModel, Material, primitives
 
 MATERIAL = Material("ashikhmin-shirley", {"rd": 0.35, "rs": 0.25, "nu": 40, "nv": 40})
-SCENARIOS = ("geo_tumbling", "geo_two_nights", "geo_night")
+SCENARIOS = (
+    "geo_tumbling",
+    "geo_two_nights",
+    "geo_night",
+    "leo_pass",
+    "leo_two_passes",
+    "geo_joint",
+)
+#: Scenarios fitting two arcs together.
+TWO_ARCS = ("geo_two_nights", "leo_two_passes")
 RATE_DEG_S = (0.3, 1.5)
 NOISE_MAG = (0.02, 0.05)
 NIGHT_S, NIGHT_CADENCE_S = 6 * 3600.0, 30.0
@@ -103,8 +128,11 @@ def observe(
     shape: FacetModel, scenario: str, rng: np.random.Generator, noise_mag: float
 ) -> Observations:
     """One simulated arc of ``scenario`` (module docstring)."""
-    if scenario != "geo_night":
+    if scenario.startswith("leo"):
+        geometry, _ = leo_geometry(rng)
+    elif scenario != "geo_night":
         geometry, _ = geo_geometry(rng)
+    if scenario != "geo_night":
         omega = rng.standard_normal(3)
         omega *= math.radians(rng.uniform(*RATE_DEG_S)) / np.linalg.norm(omega)
         q0 = random_quaternion((), rng)
@@ -130,16 +158,48 @@ def _true_material() -> brdf.BRDF:
     return brdf.get(MATERIAL.brdf, **MATERIAL.params)
 
 
-def predicted(fit, solid, held_out: Observations) -> np.ndarray:
-    """Magnitudes of the reconstructed mesh (back in the body frame) with the fit's material,
-    rendered at the held-out arc's true attitudes."""
+def predicted(fit, solid, held_out: Observations, turn: np.ndarray | None = None) -> np.ndarray:
+    """Magnitudes of the reconstructed mesh (back in the body frame of the fit, then turned
+    by ``turn`` into the true body frame when given) with the fit's material, rendered at
+    the held-out arc's true attitudes."""
     body = solid.model.vertices @ solid.principal_axes.T + solid.centroid
+    if turn is not None:
+        body = body @ turn.T
     material = Material(fit.material.name, fit.material.params)
     model = FacetModel(body, solid.model.faces, materials=material)
     q = truth_attitudes(held_out)
     return Renderer(model, shadows="none").magnitude(
         q, held_out.sun_vectors, held_out.observer_vectors
     )
+
+
+def frame_alignment(truth: np.ndarray, fitted: np.ndarray, *, proper: bool = True) -> np.ndarray:
+    """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``.
+
+    The orthogonal Procrustes solution (Schönemann 1966, "A generalized solution of the
+    orthogonal Procrustes problem", Psychometrika 31, 1) of ``M = Σ A_true A_fitᵀ = U S Vᵀ``:
+    ``R = U diag(1, 1, ±det(U Vᵀ)) Vᵀ``, a proper rotation, or with ``proper=False`` the
+    best improper one (a mirror: ``det R = −1``).
+
+    Parameters
+    ----------
+    truth, fitted : (E, 4) float
+        Inertial → body quaternions at the same epochs.
+    """
+    matrices = attitude_matrix(truth), attitude_matrix(fitted)
+    u, _, vt = np.linalg.svd(np.einsum("eij,ekj->ik", *matrices))
+    sign = np.linalg.det(u @ vt) * (1.0 if proper else -1.0)
+    return u @ np.diag([1.0, 1.0, sign]) @ vt
+
+
+def aligned_errors(truth: np.ndarray, fitted: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """Angles (deg, E) between ``A_true`` and ``R A_fit`` (``turn`` = R; an improper R
+    compares a mirrored attitude: the angle of the proper part ``−R A_fit``)."""
+    matrices = np.einsum("ij,ejk->eik", turn, attitude_matrix(fitted))
+    if np.linalg.det(turn) < 0:
+        matrices = -matrices
+    trace = np.einsum("eij,eij->e", attitude_matrix(truth), matrices)
+    return np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
 
 
 def face_errors(shape: FacetModel, normals: np.ndarray, areas: np.ndarray) -> list[float]:
@@ -155,15 +215,19 @@ def face_errors(shape: FacetModel, normals: np.ndarray, areas: np.ndarray) -> li
     return errors
 
 
-def score(shape, fit, held_out: Observations, noise_mag: float) -> dict[str, Any]:
-    """Held-out ratio, axis-ratio and face-normal errors of one fit, and its reconstruction."""
+def score(
+    shape, fit, held_out: Observations, noise_mag: float, turn: np.ndarray | None = None
+) -> dict[str, Any]:
+    """Held-out ratio, axis-ratio and face-normal errors of one fit, and its reconstruction
+    (``turn``: the rotation from the fit's body frame to the true one, when they differ)."""
     start = time.perf_counter()
     solid = convex_solid(fit.normals, fit.areas)
     seconds = time.perf_counter() - start
     a, b, c = equivalent_ellipsoid(shape)
     truth = np.array([a / b, b / c])
-    residual = held_out.magnitudes - predicted(fit, solid, held_out)
-    errors = face_errors(shape, fit.normals, fit.areas)
+    residual = held_out.magnitudes - predicted(fit, solid, held_out, turn)
+    normals = fit.normals if turn is None else fit.normals @ turn.T
+    errors = face_errors(shape, normals, fit.areas)
     return {
         "material": {"brdf": fit.material.name, "params": fit.material.params},
         "heldout_rms_mag": float(np.sqrt(np.mean(residual**2))),
@@ -177,30 +241,60 @@ def score(shape, fit, held_out: Observations, noise_mag: float) -> dict[str, Any
     }
 
 
+def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
+    """The joint fit of ``arcs`` (true material given) scored modulo the frame alignment."""
+    start = time.perf_counter()
+    joint = fit_joint(arcs, _true_material(), normals=args.normals, seed=args.seed)
+    seconds = time.perf_counter() - start
+    truth = np.concatenate([truth_attitudes(arc) for arc in arcs])
+    fitted = np.concatenate(joint.attitudes)
+    turn = frame_alignment(truth, fitted)
+    errors = aligned_errors(truth, fitted, turn)
+    mirror = aligned_errors(truth, fitted, frame_alignment(truth, fitted, proper=False))
+    return {
+        "fit_s": seconds,
+        "fit_rms_mag": joint.fit.residual_rms_mag(joint.epochs),
+        "rounds": [vars(r) for r in joint.rounds],
+        "attitude_error_deg": float(errors[-1]),
+        "attitude_error_median_deg": float(np.median(errors)),
+        "mirror_attitude_error_deg": float(mirror[-1]),
+        **score(shape, joint.fit, held_out, noise_mag, turn),
+    }
+
+
 def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dict[str, Any]:
-    """Fit one object in one scenario (fitted and known material) and score both."""
+    """Fit one object in one scenario (fitted and known material, or the joint mode) and
+    score it."""
     k = SCENARIOS.index(scenario)
     rng = np.random.default_rng([args.seed, run, k, sorted(objects()).index(name)])
     noise_mag = float(rng.uniform(*NOISE_MAG))
     arcs = [observe(shape, scenario, rng, noise_mag)]
-    if scenario == "geo_two_nights":
+    if scenario in TWO_ARCS:
         arcs.append(observe(shape, scenario, rng, noise_mag))
     held_out = observe(shape, scenario, rng, noise_mag)
-    epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
     record: dict[str, Any] = {
         "object": name,
         "scenario": scenario,
         "run": run,
         "noise_mag": noise_mag,
-        "epochs": len(epochs),
+        "epochs": int(sum(len(arc) for arc in arcs)),
     }
-    for label, fitter in (
-        ("fitted", lambda: fit_material(epochs, normals=args.normals)),
-        ("known", lambda: fit_egi(epochs, _true_material(), normals=args.normals)),
-    ):
+    if scenario == "geo_joint":
+        fitters = {"joint": lambda: _joint_record(shape, arcs, held_out, noise_mag, args)}
+    else:
+        epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
+        fitters = {
+            "fitted": lambda: fit_material(epochs, normals=args.normals),
+            "known": lambda: fit_egi(epochs, _true_material(), normals=args.normals),
+        }
+        fitters = {label: fitters[label] for label in args.materials}
+    for label, fitter in fitters.items():
         start = time.perf_counter()
         try:
             fit = fitter()
+            if label == "joint":
+                record[label] = fit
+                continue
             seconds = time.perf_counter() - start
             record[label] = {
                 "fit_s": seconds,
@@ -256,11 +350,10 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per scenario and material mode: medians, worst values and the fractions on target."""
     out: dict[str, Any] = {}
     for scenario in SCENARIOS:
-        for label in ("fitted", "known"):
-            rows = [
-                r[label] for r in records if r["scenario"] == scenario and "error" not in r[label]
-            ]
-            failed = sum(1 for r in records if r["scenario"] == scenario and "error" in r[label])
+        for label in ("fitted", "known", "joint"):
+            found = [r[label] for r in records if r["scenario"] == scenario and label in r]
+            rows = [row for row in found if "error" not in row]
+            failed = len(found) - len(rows)
             if not rows and not failed:
                 continue
             ratio = np.array([r["heldout_ratio"] for r in rows])
@@ -277,6 +370,16 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
                 "normal_error_le_5deg": float(np.mean(normal <= 5.0)) if rows else None,
                 "fit_s_median": float(np.median([r["fit_s"] for r in rows])) if rows else None,
             }
+            if label == "joint" and rows:
+                attitude = np.array([r["attitude_error_deg"] for r in rows])
+                out[f"{scenario}/{label}"] |= {
+                    "attitude_error_deg_median": float(np.median(attitude)),
+                    "attitude_le_5deg": float(np.mean(attitude <= 5.0)),
+                    "attitude_le_5deg_and_heldout_le_1_5": float(
+                        np.mean((attitude <= 5.0) & (ratio <= 1.5))
+                    ),
+                    "fit_s_max": float(max(r["fit_s"] for r in rows)),
+                }
     return out
 
 
@@ -288,8 +391,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--normals", type=int, default=2000)
     parser.add_argument("--objects", default="", help="comma-separated subset of the objects")
     parser.add_argument("--baseline-objects", type=int, default=3)
+    parser.add_argument(
+        "--materials",
+        default="fitted,known",
+        help="material modes of the known-attitude scenarios: fitted, known (comma-separated)",
+    )
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
+    args.materials = [m for m in args.materials.split(",") if m]
+    if not set(args.materials) <= {"fitted", "known"}:
+        parser.error(f"--materials: fitted and/or known, got {args.materials}")
     shapes = objects()
     chosen = [n for n in args.objects.split(",") if n] or sorted(shapes)
     records = []

@@ -40,7 +40,15 @@ from lightcurve.analysis.egi.epochs import FitEpochs
 from lightcurve.analysis.egi.grid import normal_grid, smoothness_operator
 from lightcurve.photometry.render import flux_to_magnitude
 
-__all__ = ["EGIFit", "bootstrap_areas", "design_matrix", "fit_egi", "fit_material", "min_epochs"]
+__all__ = [
+    "EGIFit",
+    "bootstrap_areas",
+    "design_matrix",
+    "egi_residuals",
+    "fit_egi",
+    "fit_material",
+    "min_epochs",
+]
 
 #: Fewest epochs of any fit, and epochs per normal: below these the data cannot hold the
 #: grid's areas (and the smoothing, not the data, would make the shape).
@@ -227,6 +235,14 @@ def _solve(
     areas = np.zeros(design.shape[1])
     areas[seen] = scaled / norms[seen]
     return areas
+
+
+def egi_residuals(epochs: FitEpochs, material: brdf.BRDF, normals: np.ndarray) -> np.ndarray:
+    """Weighted flux residuals ``(F − F_obs)/σ`` (E,) of the non-negative EGI over the fixed
+    ``normals`` (no refinement, no smoothing): the profile of the areas for given attitudes."""
+    design = design_matrix(normals, epochs, material)
+    areas = _solve(design, normals, epochs, 0.0)
+    return (design @ areas - epochs.flux) / epochs.flux_sigma
 
 
 def _chi2(model: np.ndarray, epochs: FitEpochs) -> float:
