@@ -18,6 +18,10 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Jan�
     together;
 ``geo_night``
     a stabilised (nadir-pointing, fixed random offset) object over a 6-hour night at 30 s;
+    the held-out night keeps the same offset (a stabilised object shows the same band of
+    its normals night after night: what such a night determines). Besides the true
+    attitudes, the attitudes of ``invert --modes`` (UKF, the object's own shape the
+    candidate: the best case of the modes' fit) feed the EGI as ``modes``;
 ``leo_pass`` and ``leo_two_passes``
     the longest observable pass (at least 5 minutes, 2 s) of a low circular orbit over one
     night (:func:`benchmarks.mismatch_study.leo_geometry`), the object tumbling as above: the
@@ -48,6 +52,9 @@ tried, rd held at 0.2) and, as a check of the fit alone, with the true material 
   against the true mesh's (target ≤ 10 %);
 * ``normal_error_deg``: for each true face carrying ≥ 10 % of the area, the angle between its
   normal and the area-weighted mean of the fitted normals within 10° of it (target ≤ 5°);
+  ``face_seen_share``: the share of the fitted epochs at which each such face was lit and
+  seen, and in the summary ``seen_normal_error_le_5deg`` over the faces seen at ≥ 10 % of
+  them (what a stabilised night can determine);
 * ``fit_s``, ``reconstruction_s``: wall times.
 
 ``speed``: one EGI fit of 2 000 normals × 1 200 epochs (the 40-minute arc) with the material
@@ -100,6 +107,8 @@ NOISE_MAG = (0.02, 0.05)
 NIGHT_S, NIGHT_CADENCE_S = 6 * 3600.0, 30.0
 BIG_FACE_SHARE = 0.10
 FACE_CONE_DEG = 10.0
+#: Share of the fitted epochs at which a big face must be lit and seen to count as seen.
+SEEN_SHARE = 0.10
 
 
 def objects() -> dict[str, FacetModel]:
@@ -125,9 +134,14 @@ def objects() -> dict[str, FacetModel]:
 
 
 def observe(
-    shape: FacetModel, scenario: str, rng: np.random.Generator, noise_mag: float
+    shape: FacetModel,
+    scenario: str,
+    rng: np.random.Generator,
+    noise_mag: float,
+    offset_deg: np.ndarray | None = None,
 ) -> Observations:
-    """One simulated arc of ``scenario`` (module docstring)."""
+    """One simulated arc of ``scenario`` (module docstring); ``offset_deg``: the stabilised
+    night's fixed offset from nadir (drawn when not given)."""
     if scenario.startswith("leo"):
         geometry, _ = leo_geometry(rng)
     elif scenario != "geo_night":
@@ -139,7 +153,8 @@ def observe(
         kwargs: dict[str, Any] = {"q0": q0, "omega0": omega}
     else:
         geometry, _ = geo_geometry(rng, NIGHT_S, NIGHT_CADENCE_S)
-        kwargs = {"profile": "nadir", "offset_deg": rng.uniform(-180.0, 180.0, 3)}
+        offset = rng.uniform(-180.0, 180.0, 3) if offset_deg is None else offset_deg
+        kwargs = {"profile": "nadir", "offset_deg": offset}
     return simulate(
         geometry,
         shape,
@@ -215,11 +230,27 @@ def face_errors(shape: FacetModel, normals: np.ndarray, areas: np.ndarray) -> li
     return errors
 
 
+def seen_shares(shape: FacetModel, arcs: list[Observations]) -> list[float]:
+    """For each big true face (as :func:`face_errors`), the fraction of the fitted epochs at
+    which it is both lit and seen (true attitudes): a face never seen is not determined."""
+    compiled = shape.compiled()
+    big = compiled.normals[compiled.areas / compiled.areas.sum() >= BIG_FACE_SHARE]
+    epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
+    seen = (epochs.light @ big.T > 0.0) & (epochs.view @ big.T > 0.0)
+    return seen.mean(axis=0).tolist()
+
+
 def score(
-    shape, fit, held_out: Observations, noise_mag: float, turn: np.ndarray | None = None
+    shape,
+    fit,
+    held_out: Observations,
+    noise_mag: float,
+    turn: np.ndarray | None = None,
+    arcs: list[Observations] | None = None,
 ) -> dict[str, Any]:
     """Held-out ratio, axis-ratio and face-normal errors of one fit, and its reconstruction
-    (``turn``: the rotation from the fit's body frame to the true one, when they differ)."""
+    (``turn``: the rotation from the fit's body frame to the true one, when they differ;
+    ``arcs``: the fitted arcs, for the share of epochs each big face was seen)."""
     start = time.perf_counter()
     solid = convex_solid(fit.normals, fit.areas)
     seconds = time.perf_counter() - start
@@ -236,6 +267,7 @@ def score(
         "true_axis_ratios": truth.tolist(),
         "axis_ratio_error": float(np.max(np.abs(solid.axis_ratios / truth - 1.0))),
         "normal_error_deg": errors,
+        "face_seen_share": None if arcs is None else seen_shares(shape, arcs),
         "n_facets": solid.n_facets,
         "reconstruction_s": seconds,
     }
@@ -262,16 +294,31 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     }
 
 
+def mode_attitudes(arc: Observations, shape: FacetModel, seed: int) -> np.ndarray:
+    """Per-epoch attitudes (E, 4) of ``lightcurve invert --modes`` on a stabilised night,
+    the object's own shape the candidate (the best case: the modes' offsets fitted with
+    the right shape)."""
+    from lightcurve.inversion import invert
+
+    result = invert(arc, shape, "ukf", modes=True, seed=seed)
+    mode = (result.attitude_mode or {}).get("attitude_mode")
+    if mode in (None, "tumbling"):
+        raise RuntimeError(f"invert --modes found {mode!r}, not a stabilised profile")
+    return result.estimates[["q1", "q2", "q3", "q4"]].to_numpy(dtype=float)
+
+
 def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dict[str, Any]:
     """Fit one object in one scenario (fitted and known material, or the joint mode) and
     score it."""
     k = SCENARIOS.index(scenario)
     rng = np.random.default_rng([args.seed, run, k, sorted(objects()).index(name)])
     noise_mag = float(rng.uniform(*NOISE_MAG))
-    arcs = [observe(shape, scenario, rng, noise_mag)]
+    # a stabilised object keeps its offset from nadir from night to night
+    offset = rng.uniform(-180.0, 180.0, 3) if scenario == "geo_night" else None
+    arcs = [observe(shape, scenario, rng, noise_mag, offset)]
     if scenario in TWO_ARCS:
         arcs.append(observe(shape, scenario, rng, noise_mag))
-    held_out = observe(shape, scenario, rng, noise_mag)
+    held_out = observe(shape, scenario, rng, noise_mag, offset)
     record: dict[str, Any] = {
         "object": name,
         "scenario": scenario,
@@ -288,6 +335,12 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
             "known": lambda: fit_egi(epochs, _true_material(), normals=args.normals),
         }
         fitters = {label: fitters[label] for label in args.materials}
+        if scenario == "geo_night":
+            fitters["modes"] = lambda: fit_egi(
+                FitEpochs.from_observations(arcs, [mode_attitudes(arcs[0], shape, args.seed)]),
+                _true_material(),
+                normals=args.normals,
+            )
     for label, fitter in fitters.items():
         start = time.perf_counter()
         try:
@@ -299,7 +352,7 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
             record[label] = {
                 "fit_s": seconds,
                 "fit_rms_mag": fit.residual_rms_mag(epochs),
-                **score(shape, fit, held_out, noise_mag),
+                **score(shape, fit, held_out, noise_mag, arcs=arcs),
             }
         except (ValueError, RuntimeError) as exc:  # a failed fit is a result
             record[label] = {"error": f"{type(exc).__name__}: {exc}"[:300]}
@@ -350,7 +403,7 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per scenario and material mode: medians, worst values and the fractions on target."""
     out: dict[str, Any] = {}
     for scenario in SCENARIOS:
-        for label in ("fitted", "known", "joint"):
+        for label in ("fitted", "known", "modes", "joint"):
             found = [r[label] for r in records if r["scenario"] == scenario and label in r]
             rows = [row for row in found if "error" not in row]
             failed = len(found) - len(rows)
@@ -370,6 +423,19 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
                 "normal_error_le_5deg": float(np.mean(normal <= 5.0)) if rows else None,
                 "fit_s_median": float(np.median([r["fit_s"] for r in rows])) if rows else None,
             }
+            seen = [
+                error
+                for r in rows
+                for error, share in zip(
+                    r["normal_error_deg"], r.get("face_seen_share") or [], strict=False
+                )
+                if share >= SEEN_SHARE
+            ]
+            if seen:
+                out[f"{scenario}/{label}"]["seen_faces"] = len(seen)
+                out[f"{scenario}/{label}"]["seen_normal_error_le_5deg"] = float(
+                    np.mean(np.array(seen) <= 5.0)
+                )
             if label == "joint" and rows:
                 attitude = np.array([r["attitude_error_deg"] for r in rows])
                 out[f"{scenario}/{label}"] |= {
