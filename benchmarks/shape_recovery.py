@@ -29,7 +29,7 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Janâ
     a few; one pass, or two passes on two nights fitted together;
 ``geo_joint``
     the ``geo_tumbling`` arc with the attitude **unknown**: the joint mode
-    (:func:`lightcurve.analysis.egi.joint.fit_joint`, material given, from the ellipsoid).
+    (:func:`lightcurve.joint_shape.fit_joint_shape`, material given, from the ellipsoid).
     The recovered frame is arbitrary, so the attitudes are compared after the constant
     rotation ``R`` (proper, :func:`frame_alignment`) that best maps the fitted attitude
     matrices onto the true ones over the arc (``A_true â‰ˆ R A_fit``); ``attitude_error_deg``
@@ -85,8 +85,8 @@ from lightcurve.analysis.convex.minkowski import equivalent_ellipsoid
 from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_material, normal_grid
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import design_matrix
-from lightcurve.analysis.egi.joint import fit_joint
 from lightcurve.io.observations import Observations
+from lightcurve.joint_shape import fit_joint_shape
 from lightcurve.photometry.render import Renderer
 from lightcurve.photometry.simulate import GaussianNoise, simulate
 from shapes import FacetModel, Material, primitives
@@ -276,7 +276,7 @@ def score(
 def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     """The joint fit of ``arcs`` (true material given) scored modulo the frame alignment."""
     start = time.perf_counter()
-    joint = fit_joint(arcs, _true_material(), normals=args.normals, seed=args.seed)
+    joint = fit_joint_shape(arcs, _true_material(), normals=args.normals, seed=args.seed)
     seconds = time.perf_counter() - start
     truth = np.concatenate([truth_attitudes(arc) for arc in arcs])
     fitted = np.concatenate(joint.attitudes)

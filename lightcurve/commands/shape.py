@@ -102,12 +102,12 @@ def _attitudes(observations, source: str):
 def _joint(args: argparse.Namespace, observations):
     """The joint fit (module docstring): its EGI fit, epochs, rounds and attitudes."""
     import brdf
-    from lightcurve.analysis.egi.joint import fit_joint
+    from lightcurve.joint_shape import fit_joint_shape
 
     if not args.brdf or not args.param:
         raise ValueError("without --attitude (joint mode) give the material: --brdf KIND --param …")
     material = brdf.get(brdf.describe(args.brdf).name, **brdf_parameters(args.param))
-    joint = fit_joint(
+    joint = fit_joint_shape(
         observations,
         material,
         normals=args.normals,

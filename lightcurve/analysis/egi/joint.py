@@ -4,11 +4,11 @@ Each round alternates the two problems that are easy when the other is solved (F
 2019, "Multiple model adaptive estimation for shape and attitude of space objects", and
 their EGI-based shape inversion; Little 1983 for the EGI):
 
-1. **Attitude on the current shape.** The project's attitude inversion
-   (:func:`lightcurve.inversion.invert`, UKF: global search of the initial state, USQUE
-   filter, whole-arc refit with the inertia and the albedo–area scale) runs on each file
-   with the current convex shape and the material; its per-epoch estimates are carried to
-   the principal frame of the shape's inertia.
+1. **Attitude on the current shape.** An attitude estimator (``estimate_states``; the
+   command and :mod:`lightcurve.joint_shape` pass the project's attitude inversion,
+   ``invert``'s UKF) runs on each file with the current convex shape and the material; its
+   first-epoch state is carried to the principal frame of the shape's inertia
+   (:func:`principal_start`).
 2. **Torque-free state against the best EGI (variable projection).** The first epoch's
    attitude, the body rates and two log inertia ratios of each file (a torque-free
    rotation, integrated by :func:`filters.attitude.torque_free_trajectory`) are refined by
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +54,24 @@ from lightcurve.analysis.egi.solid import convex_solid
 from lightcurve.io.observations import Observations
 from shapes import FacetModel, Material, primitives
 
-__all__ = ["JointFit", "JointRound", "fit_joint", "start_shape", "torque_free_attitudes"]
+__all__ = [
+    "JointFit",
+    "JointRound",
+    "StateEstimator",
+    "fit_joint",
+    "principal_start",
+    "refine_states",
+    "start_shape",
+    "torque_free_attitudes",
+]
+
+#: ``estimate_states(observations, shape, seed) → (states, ratios, rms)``: each file's
+#: first-epoch (attitude (4,), rates (3,) rad/s) in the principal frame of ``shape``'s
+#: inertia, the inertia ratios ``J₂/J₁``, ``J₃/J₁`` and the mean rms residual (mag).
+StateEstimator = Callable[
+    [Sequence[Observations], FacetModel, int],
+    tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray, float],
+]
 
 #: Semi-axes (m) of the default starting ellipsoid; the inversion fits the albedo–area scale.
 START_RADII = (1.5, 1.0, 0.7)
@@ -154,9 +171,11 @@ def torque_free_attitudes(
     return torque_free_trajectory(first, omega, seconds, inertia)[0]
 
 
-def _principal_start(shape: FacetModel, q: np.ndarray, w: np.ndarray):
-    """The inversion's first-epoch state in the principal frame of ``shape``'s inertia,
-    and its ratios ``J₂/J₁``, ``J₃/J₁``."""
+def principal_start(
+    shape: FacetModel, q: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A first-epoch state of ``shape``'s body frame in the principal frame of its
+    inertia: the attitude (4,), the rates (3,) and the ratios ``J₂/J₁``, ``J₃/J₁``."""
     moments, axes = np.linalg.eigh(shape.inertia)
     axes = axes * np.sign(np.linalg.det(axes))
     first = quaternion_from_matrix(axes.T @ attitude_matrix(q))
@@ -216,28 +235,11 @@ def refine_states(
     return trajectories(found.x, 1), np.exp(found.x[:2])
 
 
-def _invert_states(observations, shape, seed):
-    """The attitude inversion on ``shape`` (module docstring, step 1): first-epoch states
-    in its principal frame, the inertia ratios of the first file, the mean rms residual."""
-    from lightcurve.inversion import invert
-
-    states, rms, ratios = [], [], None
-    for obs in observations:
-        result = invert(obs, shape, "ukf", seed=seed)
-        table = result.estimates
-        q = table[["q1", "q2", "q3", "q4"]].to_numpy(dtype=float)[0]
-        w = table[["wx", "wy", "wz"]].to_numpy(dtype=float)[0]
-        first, omega, moments = _principal_start(shape, q, w)
-        states.append((first, omega))
-        ratios = moments if ratios is None else ratios
-        rms.append(result.residual_rms_mag)
-    return states, ratios, float(np.mean(rms))
-
-
 def fit_joint(
     observations: Sequence[Observations],
     material: brdf.BRDF,
     *,
+    estimate_states: StateEstimator,
     normals: int = 1000,
     start: str | None = None,
     rounds: int = ROUNDS,
@@ -251,6 +253,8 @@ def fit_joint(
         Light curves of one object, each a torque-free arc.
     material : brdf.BRDF
         The material (given; the joint mode does not fit it).
+    estimate_states : StateEstimator
+        The attitude step (module docstring, step 1).
     normals : int
         Grid normals of each round's EGI.
     start : str, optional
@@ -258,7 +262,7 @@ def fit_joint(
     rounds : int
         Rounds at most.
     seed : int
-        Seed of the attitude inversion's search.
+        Seed of the attitude step.
 
     Returns
     -------
@@ -271,7 +275,7 @@ def fit_joint(
     best: JointFit | None = None
     for index in range(rounds):
         began = time.perf_counter()
-        states, ratios, inversion_rms = _invert_states(observations, shape, seed)
+        states, ratios, inversion_rms = estimate_states(observations, shape, seed)
         attitudes, ratios = refine_states(observations, states, ratios, material)
         epochs = FitEpochs.from_observations(list(observations), attitudes)
         fit = fit_egi(epochs, material, normals=normals)

@@ -73,14 +73,14 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
         calls.append(shape.name)
         return [(principal[0], omega)], ratios, 0.03
 
-    monkeypatch.setattr(joint, "_invert_states", truth_states)
     monkeypatch.setattr(joint, "REFINE_STEPS", 3)
-    fit = joint.fit_joint([arc], shape_recovery._true_material(), normals=300, rounds=4)
+    material = shape_recovery._true_material()
+    fit = joint.fit_joint([arc], material, estimate_states=truth_states, normals=300, rounds=4)
     assert calls[0] == "start_ellipsoid" and 2 <= len(fit.rounds) < 4
     assert fit.best_round < len(fit.rounds)
     assert fit.fit.residual_rms_mag(fit.epochs) < 1.3 * 0.03
     with pytest.raises(ValueError, match="at least one round"):
-        joint.fit_joint([arc], shape_recovery._true_material(), rounds=0)
+        joint.fit_joint([arc], material, estimate_states=truth_states, rounds=0)
 
 
 def test_start_shape_carries_the_material():
@@ -97,8 +97,10 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
     from lightcurve import io
 
     io.write(arc, path)
+    from lightcurve import joint_shape
+
     monkeypatch.setattr(
-        joint, "_invert_states", lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03)
+        joint_shape, "inverted_states", lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03)
     )
     monkeypatch.setattr(joint, "refine_states", lambda o, s, r, m: ([principal], r))
     material = shape_recovery.MATERIAL
