@@ -55,7 +55,9 @@ tried, rd held at 0.2) and, as a check of the fit alone, with the true material 
   ``face_seen_share``: the share of the fitted epochs at which each such face was lit and
   seen, and in the summary ``seen_normal_error_le_5deg`` over the faces seen at ≥ 10 % of
   them (what a stabilised night can determine);
-* ``fit_s``, ``reconstruction_s``: wall times.
+* ``fit_s``, ``reconstruction_s``: wall times;
+* ``heldout_dark_epochs``: held-out epochs at which the mesh shows no lit face to the
+  observer (the ratio is then null, and off target).
 
 ``speed``: one EGI fit of 2 000 normals × 1 200 epochs (the 40-minute arc) with the material
 given, best of 3: the grid fit alone (design matrix + NNLS) and the full fit (two cluster
@@ -169,6 +171,11 @@ def _epochs(obs: Observations) -> FitEpochs:
     return FitEpochs.from_observations([obs], [truth_attitudes(obs)])
 
 
+def _finite(value: float) -> float | None:
+    """``value``, or None when it is not finite (JSON has no NaN)."""
+    return float(value) if math.isfinite(value) else None
+
+
 def _true_material() -> brdf.BRDF:
     return brdf.get(MATERIAL.brdf, **MATERIAL.params)
 
@@ -257,12 +264,15 @@ def score(
     a, b, c = equivalent_ellipsoid(shape)
     truth = np.array([a / b, b / c])
     residual = held_out.magnitudes - predicted(fit, solid, held_out, turn)
+    dark = int(np.sum(~np.isfinite(residual)))  # the mesh shows no lit face there
+    rms = float(np.sqrt(np.mean(residual**2))) if not dark else None
     normals = fit.normals if turn is None else fit.normals @ turn.T
     errors = face_errors(shape, normals, fit.areas)
     return {
         "material": {"brdf": fit.material.name, "params": fit.material.params},
-        "heldout_rms_mag": float(np.sqrt(np.mean(residual**2))),
-        "heldout_ratio": float(np.sqrt(np.mean(residual**2)) / noise_mag),
+        "heldout_rms_mag": rms,
+        "heldout_ratio": None if dark else rms / noise_mag,
+        "heldout_dark_epochs": dark,
         "axis_ratios": solid.axis_ratios.tolist(),
         "true_axis_ratios": truth.tolist(),
         "axis_ratio_error": float(np.max(np.abs(solid.axis_ratios / truth - 1.0))),
@@ -285,7 +295,7 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     mirror = aligned_errors(truth, fitted, frame_alignment(truth, fitted, proper=False))
     return {
         "fit_s": seconds,
-        "fit_rms_mag": joint.fit.residual_rms_mag(joint.epochs),
+        "fit_rms_mag": _finite(joint.fit.residual_rms_mag(joint.epochs)),
         "rounds": [vars(r) for r in joint.rounds],
         "attitude_error_deg": float(errors[-1]),
         "attitude_error_median_deg": float(np.median(errors)),
@@ -351,7 +361,7 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
             seconds = time.perf_counter() - start
             record[label] = {
                 "fit_s": seconds,
-                "fit_rms_mag": fit.residual_rms_mag(epochs),
+                "fit_rms_mag": _finite(fit.residual_rms_mag(epochs)),
                 **score(shape, fit, held_out, noise_mag, arcs=arcs),
             }
         except (ValueError, RuntimeError) as exc:  # a failed fit is a result
@@ -409,7 +419,8 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
             failed = len(found) - len(rows)
             if not rows and not failed:
                 continue
-            ratio = np.array([r["heldout_ratio"] for r in rows])
+            # a held-out arc the mesh leaves dark at some epochs is off target (ratio ∞)
+            ratio = np.array([r["heldout_ratio"] or math.inf for r in rows])
             axes = np.array([r["axis_ratio_error"] for r in rows])
             normal = np.array([max(r["normal_error_deg"], default=0.0) for r in rows])
             out[f"{scenario}/{label}"] = {
