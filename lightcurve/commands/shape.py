@@ -107,14 +107,8 @@ def _joint(args: argparse.Namespace, observations):
     if not args.brdf or not args.param:
         raise ValueError("without --attitude (joint mode) give the material: --brdf KIND --param …")
     material = brdf.get(brdf.describe(args.brdf).name, **brdf_parameters(args.param))
-    joint = fit_joint_shape(
-        observations,
-        material,
-        normals=args.normals,
-        start=args.start,
-        rounds=args.rounds,
-        seed=args.seed,
-    )
+    options = {key: getattr(args, key) for key in ("normals", "start", "rounds", "seed")}
+    joint = fit_joint_shape(observations, material, **options)
     return joint, f"material given ({material.name}); the size holds for its reflectances"
 
 
