@@ -85,7 +85,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--bootstrap", type=int, default=8, help="bootstrap refits for the axis ratios' 1σ"
     )
-    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the bootstrap and of the joint mode's search"
+    )
 
 
 def _attitudes(observations, source: str):
