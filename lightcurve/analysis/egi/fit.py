@@ -43,6 +43,7 @@ from lightcurve.photometry.render import flux_to_magnitude
 __all__ = [
     "EGIFit",
     "bootstrap_areas",
+    "check_epochs",
     "design_matrix",
     "egi_residuals",
     "fit_egi",
@@ -176,7 +177,7 @@ def fit_egi(
         Fewer epochs than :func:`min_epochs`, or a negative smoothing.
     """
     grid = normal_grid(normals) if np.ndim(normals) == 0 else np.asarray(normals, float)
-    _check_epochs(len(epochs), len(grid))
+    check_epochs(len(epochs), len(grid))
     if not smoothing >= 0.0:
         raise ValueError(f"smoothing must be ≥ 0, got {smoothing}")
     grid_design = design_matrix(grid, epochs, material)
@@ -457,7 +458,7 @@ def fit_material(
         raise ValueError(f"a fitted material is one of {', '.join(LOBES)}; got {unknown or names}")
     if not 0.0 < albedo < 1.0:
         raise ValueError(f"the assumed diffuse albedo rd must be in (0, 1), got {albedo}")
-    _check_epochs(len(epochs), normals)
+    check_epochs(len(epochs), normals)
     search = normal_grid(min(normals, MATERIAL_SEARCH_NORMALS))
 
     def chi2(rs: float, name: str, value: float) -> float:
@@ -501,7 +502,8 @@ def _lobe_material(name: str, albedo: float, rs: float, value: float) -> brdf.BR
     return brdf.get(name, **params, **dict.fromkeys(tied, value))
 
 
-def _check_epochs(count: int, normals: int) -> None:
+def check_epochs(count: int, normals: int) -> None:
+    """ValueError when ``count`` epochs cannot support an EGI of ``normals`` normals."""
     need = min_epochs(normals)
     if count < need:
         raise ValueError(

@@ -48,7 +48,7 @@ from filters.attitude import (
     torque_free_trajectory,
 )
 from lightcurve.analysis.egi.epochs import FitEpochs
-from lightcurve.analysis.egi.fit import EGIFit, egi_residuals, fit_egi
+from lightcurve.analysis.egi.fit import EGIFit, check_epochs, egi_residuals, fit_egi
 from lightcurve.analysis.egi.grid import normal_grid
 from lightcurve.analysis.egi.solid import convex_solid
 from lightcurve.io.observations import Observations
@@ -270,6 +270,7 @@ def fit_joint(
     """
     if rounds < 1:
         raise ValueError(f"the joint fit needs at least one round, got {rounds}")
+    check_epochs(sum(len(obs) for obs in observations), normals)
     shape = start_shape(material, start)
     history: list[JointRound] = []
     best: JointFit | None = None

@@ -81,6 +81,8 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
     assert fit.fit.residual_rms_mag(fit.epochs) < 1.3 * 0.03
     with pytest.raises(ValueError, match="at least one round"):
         joint.fit_joint([arc], material, estimate_states=truth_states, rounds=0)
+    with pytest.raises(ValueError, match="cannot support"):
+        joint.fit_joint([arc], material, estimate_states=truth_states, normals=20000)
 
 
 def test_start_shape_carries_the_material():
