@@ -1,8 +1,9 @@
 """Shape and attitude together: the joint EGI mode for tumbling objects of unknown attitude.
 
-Each round alternates the two problems that are easy when the other is solved (Fan & Frueh
-2019, "Multiple model adaptive estimation for shape and attitude of space objects", and
-their EGI-based shape inversion; Little 1983 for the EGI):
+Each round alternates the two problems that are easy when the other is solved: the attitude
+for a given shape, and the EGI for given attitudes (for satellites with known attitudes:
+Fan, Friedman & Frueh 2019, "Satellite shape recovery from light curves with noise", AMOS
+Conference; Little 1983 for the EGI):
 
 1. **Attitude on the current shape.** An attitude estimator (``estimate_states``; the
    command and :mod:`lightcurve.joint_shape` pass the project's attitude inversion,
