@@ -16,7 +16,7 @@ def test_the_inverted_state_reproduces_the_light_curve_in_the_principal_frame():
     shape = shape_recovery.objects()["box_3x2x1"]
     arc = shape_recovery.observe(shape, "geo_tumbling", np.random.default_rng(11), 0.02)
     arc = Observations(arc.table.iloc[:300].reset_index(drop=True), arc.meta, arc.source)
-    [(first, omega)], ratios, rms = inverted_states([arc], shape, 0)
+    [(first, omega)], ratios, rms, [estimated] = inverted_states([arc], shape, 0)
     moments, axes = np.linalg.eigh(shape.inertia)
     assert np.allclose(ratios, moments[1:] / moments[0])
     assert rms < 0.03
@@ -29,3 +29,4 @@ def test_the_inverted_state_reproduces_the_light_curve_in_the_principal_frame():
         q, arc.sun_vectors[head], arc.observer_vectors[head]
     )
     assert np.sqrt(np.mean((mag - arc.magnitudes[head]) ** 2)) < 0.03
+    assert np.allclose(np.abs(np.sum(estimated[0] * first)), 1.0)

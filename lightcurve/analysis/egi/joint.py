@@ -20,7 +20,8 @@ Conference; Little 1983 for the EGI):
    squares problems whose variables separate", SIAM J. Numer. Anal. 10, 413), so the
    attitude is fitted to the best shape rather than to the current one.
 3. **EGI on the refined attitudes**, at the full grid (:func:`~lightcurve.analysis.egi.fit_egi`),
-   and its Minkowski solid becomes the next round's shape.
+   and on the estimator's own attitudes; the lower χ² is kept (the refinement's coarse grid
+   can bias the state it finds), and its Minkowski solid becomes the next round's shape.
 
 Convergence rule: the rounds stop when the EGI's χ² fails to fall by more than
 :data:`CHI2_TOLERANCE` (relative) below the best round's, or after ``rounds``; the round with
@@ -60,18 +61,20 @@ __all__ = [
     "JointRound",
     "StateEstimator",
     "fit_joint",
+    "principal_axes",
     "principal_start",
     "refine_states",
     "start_shape",
     "torque_free_attitudes",
 ]
 
-#: ``estimate_states(observations, shape, seed) → (states, ratios, rms)``: each file's
-#: first-epoch (attitude (4,), rates (3,) rad/s) in the principal frame of ``shape``'s
-#: inertia, the inertia ratios ``J₂/J₁``, ``J₃/J₁`` and the mean rms residual (mag).
+#: ``estimate_states(observations, shape, seed) → (states, ratios, rms, attitudes)``: each
+#: file's first-epoch (attitude (4,), rates (3,) rad/s) in the principal frame of
+#: ``shape``'s inertia, the inertia ratios ``J₂/J₁``, ``J₃/J₁``, the mean rms residual
+#: (mag), and each file's estimated attitudes (E_k, 4) in that frame.
 StateEstimator = Callable[
     [Sequence[Observations], FacetModel, int],
-    tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray, float],
+    tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray, float, list[np.ndarray]],
 ]
 
 #: Semi-axes (m) of the default starting ellipsoid; the inversion fits the albedo–area scale.
@@ -177,10 +180,17 @@ def principal_start(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A first-epoch state of ``shape``'s body frame in the principal frame of its
     inertia: the attitude (4,), the rates (3,) and the ratios ``J₂/J₁``, ``J₃/J₁``."""
-    moments, axes = np.linalg.eigh(shape.inertia)
-    axes = axes * np.sign(np.linalg.det(axes))
+    moments = np.linalg.eigvalsh(shape.inertia)
+    axes = principal_axes(shape)
     first = quaternion_from_matrix(axes.T @ attitude_matrix(q))
     return first, axes.T @ w, moments[1:] / moments[0]
+
+
+def principal_axes(shape: FacetModel) -> np.ndarray:
+    """Columns (3, 3): the principal axes of ``shape``'s inertia in its body frame,
+    right-handed, in increasing order of the moments."""
+    axes = np.linalg.eigh(shape.inertia)[1]
+    return axes * np.sign(np.linalg.det(axes))
 
 
 def refine_states(
@@ -277,10 +287,14 @@ def fit_joint(
     best: JointFit | None = None
     for index in range(rounds):
         began = time.perf_counter()
-        states, ratios, inversion_rms = estimate_states(observations, shape, seed)
-        attitudes, ratios = refine_states(observations, states, ratios, material)
-        epochs = FitEpochs.from_observations(list(observations), attitudes)
-        fit = fit_egi(epochs, material, normals=normals)
+        states, ratios, inversion_rms, estimated = estimate_states(observations, shape, seed)
+        refined, ratios = refine_states(observations, states, ratios, material)
+        # the EGI on the refined attitudes and on the estimator's own; the lower χ² is kept
+        fits = []
+        for attitudes in (refined, estimated):
+            epochs = FitEpochs.from_observations(list(observations), attitudes)
+            fits.append((fit_egi(epochs, material, normals=normals), epochs, attitudes))
+        fit, epochs, attitudes = min(fits, key=lambda item: item[0].chi2)
         history.append(
             JointRound(
                 fit.chi2, fit.residual_rms_mag(epochs), inversion_rms, time.perf_counter() - began

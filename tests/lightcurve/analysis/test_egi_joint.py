@@ -71,7 +71,7 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
 
     def truth_states(observations, shape, seed):
         calls.append(shape.name)
-        return [(principal[0], omega)], ratios, 0.03
+        return [(principal[0], omega)], ratios, 0.03, [principal]
 
     monkeypatch.setattr(joint, "REFINE_STEPS", 3)
     material = shape_recovery._true_material()
@@ -102,7 +102,9 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
     from lightcurve import joint_shape
 
     monkeypatch.setattr(
-        joint_shape, "inverted_states", lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03)
+        joint_shape,
+        "inverted_states",
+        lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03, [principal]),
     )
     monkeypatch.setattr(joint, "refine_states", lambda o, s, r, m: ([principal], r))
     material = shape_recovery.MATERIAL
