@@ -6,8 +6,9 @@ from an ellipsoid (or --start NAME, a library shape): each round inverts the att
 current shape, refines each file's torque-free state and inertia ratios against the best
 EGI, and fits the EGI on the refined and on the inversion's own attitudes, keeping the
 better; the rounds stop when χ² falls by less than 1 % (at most --rounds). The joint mode
-needs the material (--brdf KIND --param …); shape.obj and the attitudes (DIR/attitudes.csv) are then in the principal frame of the
-fitted inertia, defined up to the shape's symmetries and a mirror image (docs/shape.md).
+needs the material (--brdf KIND --param …); shape.obj and the attitudes
+(DIR/attitudes.csv) are then in the principal frame of the fitted inertia, defined up to
+the shape's symmetries and a mirror image (docs/shape.md).
 
 With the attitude known at every epoch (--attitude truth: the files' truth columns q1..q4;
 --attitude RESULT_DIR: the per-epoch estimates of a `lightcurve invert` result folder, one
