@@ -15,6 +15,8 @@ Modules
   parser's own help texts.
 - :mod:`~lightcurve.importing` — Importing photometry: a table, a site and the target's geometry
   into observations.
+- :mod:`~lightcurve.joint_shape` — The joint shape-and-attitude fit of ``lightcurve shape``
+  with the attitude inversion as its attitude step.
 - :mod:`~lightcurve.pipeline` — The inversion pipeline for one observation file, as run by
   ``lightcurve invert``.
 - :mod:`~lightcurve.plots` — Figures of an inversion result folder (``lightcurve plot

@@ -59,3 +59,30 @@ def test_a_known_material_fit_is_scored_and_summarised(arcs):
     summary = shape_recovery.summarise([record])
     assert summary["geo_tumbling/known"]["runs"] == 1
     assert summary["geo_tumbling/fitted"]["failed"] == 1
+
+
+def test_frame_alignment_recovers_a_constant_turn_and_its_mirror():
+    from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
+
+    rng = np.random.default_rng(2)
+    truth = random_quaternion((50,), rng)
+    turn = attitude_matrix(random_quaternion((), rng))
+    fitted = quaternion_from_matrix(np.einsum("ji,ejk->eik", turn, attitude_matrix(truth)))
+    found = shape_recovery.frame_alignment(truth, fitted)
+    assert np.allclose(found, turn, atol=1e-9)
+    assert np.max(shape_recovery.aligned_errors(truth, fitted, found)) < 1e-5
+    mirror = shape_recovery.frame_alignment(truth, fitted, proper=False)
+    assert np.linalg.det(mirror) == pytest.approx(-1.0)
+    assert np.min(shape_recovery.aligned_errors(truth, fitted, mirror)) > 1.0
+
+
+def test_a_leo_pass_sweeps_a_wider_phase_range_than_a_geo_arc():
+    shape = shape_recovery.objects()["box_1.5x1.5x1"]
+
+    def phase_span(scenario):
+        arc = shape_recovery.observe(shape, scenario, np.random.default_rng(4), 0.03)
+        sun, obs = arc.sun_vectors, arc.observer_vectors
+        cosine = np.sum(sun * obs, 1) / np.linalg.norm(sun, axis=1) / np.linalg.norm(obs, axis=1)
+        return np.ptp(np.degrees(np.arccos(cosine)))
+
+    assert phase_span("leo_pass") > 2 * phase_span("geo_tumbling")

@@ -1,6 +1,15 @@
 """The convex shape of an object the library lacks, from its light curves and attitudes:
 the extended Gaussian image (EGI) and Minkowski's reconstruction.
 
+Without --attitude (joint mode, tumbling objects): shape and attitude together, starting
+from an ellipsoid (or --start NAME, a library shape): each round inverts the attitude on the
+current shape, refines each file's torque-free state and inertia ratios against the best
+EGI, and fits the EGI on the refined and on the inversion's own attitudes, keeping the
+better; the rounds stop when χ² falls by less than 1 % (at most --rounds). The joint mode
+needs the material (--brdf KIND --param …); shape.obj and the attitudes
+(DIR/attitudes.csv) are then in the principal frame of the fitted inertia, defined up to
+the shape's symmetries and a mirror image (docs/shape.md).
+
 With the attitude known at every epoch (--attitude truth: the files' truth columns q1..q4;
 --attitude RESULT_DIR: the per-epoch estimates of a `lightcurve invert` result folder, one
 input's folder or the batch folder holding <file stem>/), the flux is linear in the areas
@@ -27,7 +36,7 @@ from pathlib import Path
 from lightcurve.commands._args import add_observation_files, add_output_folder, brdf_parameters
 
 NAME = "shape"
-HELP = "convex shape from light curves with known attitudes (EGI + Minkowski, shape OBJ)"
+HELP = "convex shape from light curves, attitudes known or fitted (EGI + Minkowski, shape OBJ)"
 ORDER = 43
 
 #: Default grid of normals: on the first arcs of benchmarks.shape_recovery 1 000 and 2 000
@@ -40,9 +49,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_output_folder(parser)
     parser.add_argument(
         "--attitude",
-        required=True,
         metavar="truth|RESULT_DIR",
-        help="attitudes: the files' truth columns, or an inversion result folder",
+        help="attitudes: the files' truth columns, or an inversion result folder "
+        "(default: fitted with the shape, joint mode)",
+    )
+    parser.add_argument(
+        "--start",
+        metavar="NAME",
+        help="joint mode: library shape to start from (default: ellipsoid)",
+    )
+    parser.add_argument(
+        "--rounds", type=int, default=3, help="joint mode: rounds at most (default: 3)"
     )
     parser.add_argument(
         "--normals", type=int, default=DEFAULT_NORMALS, metavar="N", help="grid normals"
@@ -69,7 +86,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--bootstrap", type=int, default=8, help="bootstrap refits for the axis ratios' 1σ"
     )
-    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the bootstrap and of the joint mode's search"
+    )
 
 
 def _attitudes(observations, source: str):
@@ -81,6 +100,19 @@ def _attitudes(observations, source: str):
     if not folder.is_dir():
         raise FileNotFoundError(f"--attitude {source}: neither 'truth' nor a result folder")
     return [result_attitudes(obs, folder) for obs in observations]
+
+
+def _joint(args: argparse.Namespace, observations):
+    """The joint fit (module docstring): its EGI fit, epochs, rounds and attitudes."""
+    import brdf
+    from lightcurve.joint_shape import fit_joint_shape
+
+    if not args.brdf or not args.param:
+        raise ValueError("without --attitude (joint mode) give the material: --brdf KIND --param …")
+    material = brdf.get(brdf.describe(args.brdf).name, **brdf_parameters(args.param))
+    options = {key: getattr(args, key) for key in ("normals", "start", "rounds", "seed")}
+    joint = fit_joint_shape(observations, material, **options)
+    return joint, f"material given ({material.name}); the size holds for its reflectances"
 
 
 def _fit(args: argparse.Namespace, epochs):
@@ -107,6 +139,18 @@ def _fit(args: argparse.Namespace, epochs):
     return fit, note
 
 
+def _attitude_columns(epochs, attitudes) -> dict:
+    """The fitted attitudes per epoch as columns (file, mjd, q1..q4)."""
+    import numpy as np
+
+    q = np.concatenate(attitudes)
+    return {
+        "file": epochs.source,
+        "mjd": epochs.mjd,
+        **{f"q{i + 1}": q[:, i] for i in range(4)},
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -124,8 +168,16 @@ def run(args: argparse.Namespace) -> int:
     for obs in observations:
         if not obs.has_magnitudes:
             raise ValueError(f"{obs.source}: no mag/mag_err columns: a geometry file, no data")
-    epochs = FitEpochs.from_observations(observations, _attitudes(observations, args.attitude))
-    fit, scale_note = _fit(args, epochs)
+    joint = None
+    if args.attitude is None:
+        joint, scale_note = _joint(args, observations)
+        fit, epochs = joint.fit, joint.epochs
+    else:
+        if args.start is not None:
+            raise ValueError("--start applies to the joint mode (without --attitude)")
+        attitudes = _attitudes(observations, args.attitude)
+        epochs = FitEpochs.from_observations(observations, attitudes)
+        fit, scale_note = _fit(args, epochs)
     samples = bootstrap_areas(epochs, fit, samples=args.bootstrap, seed=args.seed)
     solid = convex_solid(fit.normals, fit.areas, samples=samples if args.bootstrap > 1 else None)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -143,8 +195,8 @@ def run(args: argparse.Namespace) -> int:
     )
     rms = fit.residual_rms_mag(epochs)
     summary = {
-        "method": "egi",
-        "attitude_source": args.attitude,
+        "method": "egi" if joint is None else "joint",
+        "attitude_source": args.attitude or "joint",
         "files": [str(p) for p in args.files],
         "n_epochs": len(epochs),
         "n_normals": len(fit.normals),
@@ -166,6 +218,14 @@ def run(args: argparse.Namespace) -> int:
         "principal_axes_body": axes,
         "centroid_body_m": solid.centroid,
     }
+    if joint is not None:
+        summary["joint"] = {
+            "rounds": [vars(r) for r in joint.rounds],
+            "best_round": joint.best_round,
+            "inertia_ratios": joint.inertia_ratios,
+            "start": args.start or "ellipsoid",
+        }
+        atomic_write_csv(_attitude_columns(epochs, joint.attitudes), args.out / "attitudes.csv")
     atomic_write_json(args.out / "summary.json", json_ready(summary))
     atomic_write_csv(
         {

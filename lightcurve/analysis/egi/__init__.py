@@ -16,6 +16,8 @@ Modules
 - :mod:`~lightcurve.analysis.egi.fit` — the design matrix, the non-negative fit, the material
   search and the areas' 1σ.
 - :mod:`~lightcurve.analysis.egi.solid` — the convex mesh in metres and its axis ratios with 1σ.
+- :mod:`~lightcurve.analysis.egi.joint` — shape and attitude together (the joint mode): rounds
+  of an attitude step, the torque-free state refined against the best EGI, and the EGI.
 - :mod:`~lightcurve.analysis.egi.plots` — the figure of a fit.
 
 This ``__init__`` only hands the public names on.

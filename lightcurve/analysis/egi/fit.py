@@ -40,7 +40,16 @@ from lightcurve.analysis.egi.epochs import FitEpochs
 from lightcurve.analysis.egi.grid import normal_grid, smoothness_operator
 from lightcurve.photometry.render import flux_to_magnitude
 
-__all__ = ["EGIFit", "bootstrap_areas", "design_matrix", "fit_egi", "fit_material", "min_epochs"]
+__all__ = [
+    "EGIFit",
+    "bootstrap_areas",
+    "check_epochs",
+    "design_matrix",
+    "egi_residuals",
+    "fit_egi",
+    "fit_material",
+    "min_epochs",
+]
 
 #: Fewest epochs of any fit, and epochs per normal: below these the data cannot hold the
 #: grid's areas (and the smoothing, not the data, would make the shape).
@@ -168,7 +177,7 @@ def fit_egi(
         Fewer epochs than :func:`min_epochs`, or a negative smoothing.
     """
     grid = normal_grid(normals) if np.ndim(normals) == 0 else np.asarray(normals, float)
-    _check_epochs(len(epochs), len(grid))
+    check_epochs(len(epochs), len(grid))
     if not smoothing >= 0.0:
         raise ValueError(f"smoothing must be ≥ 0, got {smoothing}")
     grid_design = design_matrix(grid, epochs, material)
@@ -227,6 +236,14 @@ def _solve(
     areas = np.zeros(design.shape[1])
     areas[seen] = scaled / norms[seen]
     return areas
+
+
+def egi_residuals(epochs: FitEpochs, material: brdf.BRDF, normals: np.ndarray) -> np.ndarray:
+    """Weighted flux residuals ``(F − F_obs)/σ`` (E,) of the non-negative EGI over the fixed
+    ``normals`` (no refinement, no smoothing): the profile of the areas for given attitudes."""
+    design = design_matrix(normals, epochs, material)
+    areas = _solve(design, normals, epochs, 0.0)
+    return (design @ areas - epochs.flux) / epochs.flux_sigma
 
 
 def _chi2(model: np.ndarray, epochs: FitEpochs) -> float:
@@ -441,7 +458,7 @@ def fit_material(
         raise ValueError(f"a fitted material is one of {', '.join(LOBES)}; got {unknown or names}")
     if not 0.0 < albedo < 1.0:
         raise ValueError(f"the assumed diffuse albedo rd must be in (0, 1), got {albedo}")
-    _check_epochs(len(epochs), normals)
+    check_epochs(len(epochs), normals)
     search = normal_grid(min(normals, MATERIAL_SEARCH_NORMALS))
 
     def chi2(rs: float, name: str, value: float) -> float:
@@ -485,7 +502,8 @@ def _lobe_material(name: str, albedo: float, rs: float, value: float) -> brdf.BR
     return brdf.get(name, **params, **dict.fromkeys(tied, value))
 
 
-def _check_epochs(count: int, normals: int) -> None:
+def check_epochs(count: int, normals: int) -> None:
+    """ValueError when ``count`` epochs cannot support an EGI of ``normals`` normals."""
     need = min_epochs(normals)
     if count < need:
         raise ValueError(

@@ -1,0 +1,119 @@
+"""The joint mode's parts: the torque-free attitudes, the variable-projection refinement of
+the states, the round logic and the command's wiring."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import brdf
+from benchmarks import shape_recovery
+from filters.attitude import (
+    attitude_angle,
+    attitude_matrix,
+    quaternion_from_matrix,
+    rotation_vector_to_quaternion,
+)
+from lightcurve.analysis.egi import FitEpochs, joint, normal_grid
+from lightcurve.analysis.egi.epochs import truth_attitudes
+from lightcurve.analysis.egi.fit import egi_residuals
+from lightcurve.cli import main
+from lightcurve.io.observations import Observations
+
+
+@pytest.fixture(scope="module")
+def tumbling():
+    """A 3 × 2 × 1 m box tumbling over a short geostationary arc (400 epochs at 2 s)."""
+    shape = shape_recovery.objects()["box_3x2x1"]
+    rng = np.random.default_rng(11)
+    arc = shape_recovery.observe(shape, "geo_tumbling", rng, 0.03)
+    arc = Observations(arc.table.iloc[:400].reset_index(drop=True), arc.meta, arc.source)
+    moments, axes = np.linalg.eigh(shape.inertia)
+    axes = axes * np.sign(np.linalg.det(axes))
+    truth = truth_attitudes(arc)
+    principal = quaternion_from_matrix(np.einsum("ji,ejk->eik", axes, attitude_matrix(truth)))
+    omega = axes.T @ arc.table[["wx", "wy", "wz"]].to_numpy()[0]
+    return arc, principal, omega, moments[1:] / moments[0]
+
+
+def test_torque_free_attitudes_follow_the_simulated_truth(tumbling):
+    arc, principal, omega, ratios = tumbling
+    seconds = (arc.mjd - arc.mjd[0]) * 86400.0
+    q = joint.torque_free_attitudes(principal[0], omega, ratios, seconds)
+    assert np.degrees(np.max(attitude_angle(q, principal))) < 0.05
+
+
+def test_refinement_lowers_the_profile_chi2_to_the_truths(tumbling):
+    arc, principal, omega, ratios = tumbling
+    turn = np.random.default_rng(3).standard_normal(3)
+    turn *= math.radians(10.0) / np.linalg.norm(turn)
+    start = quaternion_from_matrix(
+        attitude_matrix(rotation_vector_to_quaternion(turn)) @ attitude_matrix(principal[0])
+    )
+    material = shape_recovery._true_material()
+    seconds = (arc.mjd - arc.mjd[0]) * 86400.0
+    grid = normal_grid(joint.REFINE_NORMALS)
+
+    def chi2(q):
+        epochs = FitEpochs.from_observations([arc], [q])
+        return float(np.sum(egi_residuals(epochs, material, grid) ** 2))
+
+    before = joint.torque_free_attitudes(start, omega * 1.01, ratios * 1.02, seconds)
+    (after,), _ = joint.refine_states([arc], [(start, omega * 1.01)], ratios * 1.02, material)
+    assert chi2(after) < chi2(before)
+    assert chi2(after) < 1.2 * chi2(principal)
+
+
+def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
+    arc, principal, omega, ratios = tumbling
+    calls = []
+
+    def truth_states(observations, shape, seed):
+        calls.append(shape.name)
+        return [(principal[0], omega)], ratios, 0.03, [principal]
+
+    monkeypatch.setattr(joint, "REFINE_STEPS", 3)
+    material = shape_recovery._true_material()
+    fit = joint.fit_joint([arc], material, estimate_states=truth_states, normals=300, rounds=4)
+    assert calls[0] == "start_ellipsoid" and 2 <= len(fit.rounds) < 4
+    assert fit.best_round < len(fit.rounds)
+    assert fit.fit.residual_rms_mag(fit.epochs) < 1.3 * 0.03
+    with pytest.raises(ValueError, match="at least one round"):
+        joint.fit_joint([arc], material, estimate_states=truth_states, rounds=0)
+    with pytest.raises(ValueError, match="cannot support"):
+        joint.fit_joint([arc], material, estimate_states=truth_states, normals=20000)
+
+
+def test_start_shape_carries_the_material():
+    material = brdf.get("lambert", rd=0.3)
+    shape = joint.start_shape(material)
+    assert shape.name == "start_ellipsoid"
+    assert joint.start_shape(material, "box").name == "box"
+
+
+def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, capsys):
+    arc, principal, omega, ratios = tumbling
+    monkeypatch.delenv("LIGHTCURVE_LIBRARY", raising=False)
+    path = tmp_path / "arc.csv"
+    from lightcurve import io
+
+    io.write(arc, path)
+    from lightcurve import joint_shape
+
+    monkeypatch.setattr(
+        joint_shape,
+        "inverted_states",
+        lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03, [principal]),
+    )
+    monkeypatch.setattr(joint, "refine_states", lambda o, s, r, m: ([principal], r))
+    material = shape_recovery.MATERIAL
+    params = [f"--param={k}={v}" for k, v in material.params.items()]
+    argv = ["shape", path, "--out", tmp_path / "out", "--brdf", material.brdf, *params]
+    assert main([str(a) for a in [*argv, "--normals", "200", "--rounds", "2", "-q"]]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["method"] == "joint" and summary["attitude_source"] == "joint"
+    assert len(summary["joint"]["rounds"]) >= 1
+    assert (tmp_path / "out" / "attitudes.csv").is_file()
+    assert main([str(a) for a in ["shape", path, "--out", tmp_path / "o2", "-q"]]) == 2
+    assert "give the material" in capsys.readouterr().err
