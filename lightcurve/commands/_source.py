@@ -12,6 +12,7 @@ imported module.
 from __future__ import annotations
 
 import ast
+import importlib.machinery
 import importlib.util
 from functools import cache
 from pathlib import Path
@@ -22,8 +23,18 @@ __all__ = ["dataclass_fields", "literal", "module_literals"]
 
 @cache
 def _body(module: str) -> tuple[ast.stmt, ...]:
-    """The top-level statements of a module's source (found without importing it)."""
-    spec = importlib.util.find_spec(module)
+    """The top-level statements of a module's source, found without importing it or its
+    parent packages (``importlib.util.find_spec`` of a submodule imports the parents, whose
+    ``__init__`` may be heavy): the top-level package's spec, then each submodule's in its
+    parent's folders."""
+    parts = module.split(".")
+    spec = importlib.util.find_spec(parts[0])
+    for depth in range(2, len(parts) + 1):
+        if spec is None or not spec.submodule_search_locations:
+            spec = None
+            break
+        locations = list(spec.submodule_search_locations)
+        spec = importlib.machinery.PathFinder.find_spec(".".join(parts[:depth]), locations)
     if spec is None or spec.origin is None:
         raise ModuleNotFoundError(f"no module named {module!r}")
     return tuple(ast.parse(Path(spec.origin).read_text(encoding="utf-8")).body)

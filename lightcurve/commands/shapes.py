@@ -18,7 +18,7 @@ import numpy as np
 import brdf
 import shapes
 from lightcurve.commands._args import brdf_parameters, show_progress
-from shapes.library.proxy import PROXY_MIN_FACETS
+from lightcurve.commands._source import literal
 
 if TYPE_CHECKING:
     from shapes.articulation import ArticulatedModel
@@ -90,11 +90,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "facets); none: skip it (shadows then ray-cast, or off; `shapes rebuild NAME` builds "
         "it later)",
     )
+    threshold = literal("shapes.library.proxy", "PROXY_MIN_FACETS")
     p.add_argument(
         "--proxy",
         choices=("auto", "none"),
         default="auto",
-        help=f"auto: a mesh of more than {PROXY_MIN_FACETS} facets also gets a level-of-detail "
+        help=f"auto: a mesh of more than {threshold} facets also gets a level-of-detail "
         "proxy for the inversions (quadric decimation, its light-curve error measured over "
         "10⁴ random geometries; tens of seconds); none: skip it",
     )

@@ -34,6 +34,7 @@ Modules
   Earth-orbiting object.
 - :mod:`~lightcurve.photometry.proxy_error` — the light-curve error of a shape's
   level-of-detail proxy against its full mesh over random geometries.
-- :mod:`~lightcurve.photometry.calibration` — a shape's photometric parameters fitted to
+- :mod:`~lightcurve.photometry.calibration` — the predicted magnitudes of a rigid or
+  articulated shape at the geometry of observations, and its photometric parameters fitted to
   observations with known attitudes, cross-validated by night.
 """

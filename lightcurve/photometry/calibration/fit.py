@@ -1,4 +1,4 @@
-"""Calibration of a shape's photometric parameters on observations with known attitudes.
+"""The robust fit of a shape's photometric parameters to observations with known attitudes.
 
 Given observations of one object (or of a family of identical ones) whose attitude at each
 epoch follows a known profile, :func:`calibrate` fits a magnitude offset (the albedo–area
@@ -40,15 +40,16 @@ from scipy.optimize import least_squares
 import brdf
 from filters.attitude import quaternion_multiply
 from lightcurve.io.observations import Observations
-from lightcurve.photometry.articulated import ArticulatedRenderer, scheduled_columns
-from lightcurve.photometry.earthshine import (
-    earthshine_applies,
-    known_positions,
-    sun_and_earth_flux,
+from lightcurve.photometry.calibration.prediction import (
+    PredictionGeometry,
+    Shape,
+    model_magnitude,
+    shape_flux,
 )
+from lightcurve.photometry.earthshine import earthshine_applies, known_positions
 from lightcurve.photometry.profiles import offset_quaternion
-from lightcurve.photometry.render import Renderer, flux_to_magnitude
-from shapes import FacetModel, Material
+from lightcurve.photometry.render import flux_to_magnitude
+from shapes import Material
 from shapes.articulation import ArticulatedModel
 
 __all__ = [
@@ -56,7 +57,6 @@ __all__ = [
     "Calibration",
     "calibrate",
     "cross_validate",
-    "model_magnitude",
     "night_index",
 ]
 
@@ -142,66 +142,10 @@ class Calibration:
         }
 
 
-#: A shape the calibration fits: rigid, or with articulated parts.
-Shape = FacetModel | ArticulatedModel
-
-
 def _as_articulated(model: Shape) -> ArticulatedModel:
     if not isinstance(model, ArticulatedModel):
         raise ValueError(f"calibration: {model.name} has no articulated parts")
     return model
-
-
-@dataclass(frozen=True)
-class _Geometry:
-    """The arrays a prediction needs, read once from an observation table: object → Sun and
-    object → observer vectors (m), the object's positions (m) when the Earth's light is
-    modelled, and the columns of scheduled joints."""
-
-    sun: np.ndarray
-    observer: np.ndarray
-    position: np.ndarray | None
-    columns: dict[str, np.ndarray]
-
-    @classmethod
-    def of(cls, model: Shape, observations: Observations, earthshine: bool) -> _Geometry:
-        articulated = isinstance(model, ArticulatedModel)
-        return cls(
-            observations.sun_vectors,
-            observations.observer_vectors,
-            observations.object_positions if earthshine else None,
-            scheduled_columns(model, observations.table) if articulated else {},
-        )
-
-
-def model_magnitude(
-    model: Shape,
-    q: Any,
-    observations: Observations,
-    *,
-    shadows: str = "auto",
-    earthshine: str = "auto",
-) -> np.ndarray:
-    """Magnitudes of ``model`` (rigid or articulated) at attitudes ``q`` (inertial → body)
-    and the geometry of ``observations``, lit by the Sun and, as ``earthshine`` says
-    (:func:`~lightcurve.photometry.earthshine.earthshine_applies`), by the Earth: the
-    uncalibrated prediction a calibration starts from."""
-    with_earth = earthshine_applies(earthshine, known_positions(observations))
-    geometry = _Geometry.of(model, observations, with_earth)
-    return flux_to_magnitude(_model_flux(model, np.asarray(q, dtype=float), geometry, shadows))
-
-
-def _model_flux(model: Shape, q: np.ndarray, geometry: _Geometry, shadows: str) -> np.ndarray:
-    """Flux ratio of ``model`` lit by the Sun (and the Earth) at ``geometry``."""
-    if isinstance(model, ArticulatedModel):
-        renderer: Any = ArticulatedRenderer(model, shadows=shadows)
-        columns: dict[str, np.ndarray] | None = geometry.columns
-    else:
-        renderer, columns = Renderer(model, shadows=shadows), None
-    sunlit, earthlit = sun_and_earth_flux(
-        renderer, q, geometry.sun, geometry.observer, geometry.position, columns=columns
-    )
-    return sunlit + earthlit
 
 
 @dataclass(frozen=True)
@@ -307,7 +251,7 @@ def calibrate(
         )
     rows = np.flatnonzero(finite)
     q = np.asarray(q, dtype=float)[rows]
-    geometry = _Geometry.of(model, _subset(observations, finite), with_earth)
+    geometry = PredictionGeometry.of(model, _subset(observations, finite), with_earth)
     measured, sigma = measured[rows], sigma[rows]
     faint = float(np.max(measured)) + 10.0  # a dark model epoch: far fainter than any data
 
@@ -319,7 +263,7 @@ def calibrate(
 
     def predicted(x: np.ndarray) -> np.ndarray:
         turned = _turned(q, x[layout.angles])
-        flux = _model_flux(shape_at(x), turned, geometry, shadows)
+        flux = shape_flux(shape_at(x), turned, geometry, shadows)
         magnitude = np.minimum(flux_to_magnitude(flux), faint)
         return magnitude + (x[0] if offset else 0.0)
 
