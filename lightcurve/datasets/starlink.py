@@ -36,7 +36,7 @@ from lightcurve.io.observations import (
     datetime_to_mjd,
     validate_table,
 )
-from lightcurve.photometry.earthshine import earthshine_applies, earthshine_flux
+from lightcurve.photometry.earthshine import earthshine_applies, sun_and_earth_flux
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.sky.ephemeris import Site, site_position
 from shapes import FacetModel, Material, primitives
@@ -251,11 +251,9 @@ def _fluxes(
     """Flux ratios lit by the Sun and by the Earth (zeros without ``position_km``)."""
     # The paper's model is two independent surfaces: no mutual shadowing.
     renderer = Renderer(starlink_model(materials), shadows="none")
+    position = None if position_km is None else position_km * _KM
     sun, observer = observations.sun_vectors, observations.observer_vectors
-    direct = renderer.flux(q, sun, observer)
-    if position_km is None:
-        return direct, np.zeros_like(direct)
-    return direct, earthshine_flux(renderer, q, observer, position_km * _KM, sun)
+    return sun_and_earth_flux(renderer, q, sun, observer, position)
 
 
 def predict_pomenis(

@@ -330,9 +330,11 @@ def calibrate(
             max_nfev=max_nfev,
         )
 
-    # every start is screened by a short fit; the best is fitted to convergence
-    screened = sorted((local_fit(x, _SCREEN_NFEV) for x in x_starts), key=lambda r: r.cost)
-    fit = local_fit(screened[0].x)
+    # with several starts, each is screened by a short fit; the best is fitted to convergence
+    if len(x_starts) > 1:
+        screened = sorted((local_fit(x, _SCREEN_NFEV) for x in x_starts), key=lambda r: r.cost)
+        x_starts = [screened[0].x]
+    fit = local_fit(x_starts[0])
     data = fit.fun[: len(measured)]
     spread = 1.4826 * float(np.median(np.abs(data - np.median(data))))
     covariance = np.linalg.pinv(fit.jac.T @ fit.jac, hermitian=True) * max(1.0, spread**2)
