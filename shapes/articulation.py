@@ -270,13 +270,16 @@ class Articulation:
 
         Parameters
         ----------
-        spec : list of dict
-            The ``parts`` entries (module docstring).
+        spec : list of dict or Articulation
+            The ``parts`` entries (module docstring), or an articulation to check against
+            ``group_names``.
         group_names : sequence of str
             Groups of the mesh.
         where : str
             Context of error messages (file and shape).
         """
+        if isinstance(spec, Articulation):
+            spec = spec.to_list()
         if not isinstance(spec, Sequence) or isinstance(spec, str) or not spec:
             raise ShapeError(f"{where}: parts must be a non-empty list, got {spec!r}")
         parts: list[Part] = []

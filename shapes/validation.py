@@ -21,6 +21,7 @@ __all__ = [
     "check_arrays",
     "check_degenerate",
     "check_unit",
+    "degenerate_facets",
     "require_solid",
     "validate",
 ]
@@ -72,9 +73,15 @@ def check_arrays(vertices: Any, faces: Any, where: str = "mesh") -> tuple[np.nda
     return v, f
 
 
+def degenerate_facets(areas: np.ndarray, scale: float) -> np.ndarray:
+    """Mask of the (nearly) zero-area facets among ``areas`` of a model of size ``scale``
+    (areas below 10⁻¹⁴ of its square)."""
+    return np.asarray(areas) <= _DEGENERATE * scale**2
+
+
 def check_degenerate(model: FacetMesh) -> None:
     """Raise if any facet has (nearly) zero area."""
-    bad = np.flatnonzero(model.areas <= _DEGENERATE * model.scale**2)
+    bad = np.flatnonzero(degenerate_facets(model.areas, model.scale))
     if len(bad):
         raise ShapeError(f"{model.name}: degenerate (zero-area) facet {_facet_list(bad)}")
 

@@ -107,7 +107,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = action(
         "rebuild",
         "rebuild the visibility tables of every non-convex shape (or one), e.g. tables written "
-        "in an older format or skipped at add; keeps each table's resolution and sampling",
+        "in an older format or skipped at add; keeps each table's resolution and sampling; a "
+        "shape's level-of-detail proxy is chosen and measured again with the new table",
     )
     p.add_argument("name", nargs="?", help="shape name (default: every non-convex shape)")
     p = action("render", "write a PNG preview coloured by material")
@@ -375,9 +376,13 @@ def _validate(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
 
 
 def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
+    from lightcurve.photometry.proxy_error import ProxyErrorMeter
+
     names = [args.name] if args.name else library.names()
     for name in names:
-        model = library.rebuild_visibility(name, progress=show_progress(args))
+        model = library.rebuild_visibility(
+            name, progress=show_progress(args), proxy_meter=ProxyErrorMeter()
+        )
         table = model.visibility
         if args.quiet:
             continue
@@ -386,8 +391,11 @@ def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
             continue
         print(
             f"rebuilt {name}: {len(table.grid)} directions, {table.n_points} sample points, "
-            f"{table.nbytes / 2**20:.1f} MiB in memory"
+            f"{table.bits.nbytes / 2**20:.1f} MiB of bits"
         )
+        proxy = library.info(name).get("proxy")
+        if proxy is not None:
+            print(f"proxy of {name}: {_proxy_text(proxy)}")
     return 0
 
 

@@ -55,7 +55,11 @@ from shapes.library.proxy import PROXY_MIN_FACETS, ProxyMeter, stage_proxy
 from shapes.material import Material
 from shapes.model import FacetModel
 from shapes.validation import validate
-from shapes.visibility.build import build_visibility_table, describe_build
+from shapes.visibility.build import (
+    build_visibility_table,
+    describe_build,
+    stored_build_options,
+)
 from shapes.visibility.sampling import DEFAULT_SAMPLES, DEFAULT_SPACING
 from shapes.visibility.table import DEFAULT_RESOLUTION, TableFormatError, VisibilityTable
 
@@ -69,6 +73,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
+_TABLE_OPTIONS = ("resolution", "samples", "spacing")  # a table's build options
 
 
 class LibraryReadOnlyError(ShapeError, PermissionError):
@@ -196,10 +201,10 @@ class ShapeLibrary:
                 raise ShapeError(f"{where}: {exc}") from None
         if not build_visibility or model.is_convex or entry.get("shadows") == "none":
             return model
-        table = build_visibility_table(model)
+        model = model.with_visibility(build_visibility_table(model))
         if not self.read_only:
-            self._store_table(name, entry["sha256"], table)
-        return model.with_visibility(table)
+            self._store_table(name, entry["sha256"], model)
+        return model
 
     def _read_table(self, files: Mapping[str, Any]) -> VisibilityTable | None:
         """The table named by ``files["visibility"]`` (checked against its checksum)."""
@@ -263,30 +268,23 @@ class ShapeLibrary:
         entry: Mapping[str, Any],
         old_table: Path | None,
         progress: bool = False,
+        proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
         """Build the table of ``model`` with the resolution and sampling of ``old_table``
-        (when readable) and store it (``progress``: a tqdm bar)."""
-        options: dict[str, Any] = {
-            "resolution": DEFAULT_RESOLUTION,
-            "samples": DEFAULT_SAMPLES,
-            "spacing": DEFAULT_SPACING,
-        }
-        if old_table is not None and old_table.is_file():
-            try:
-                with np.load(old_table, allow_pickle=False) as data:
-                    for key, value in options.items():
-                        if key in data.files:
-                            options[key] = type(value)(data[key])
-            except (OSError, ValueError):
-                pass  # an unreadable old table: the defaults
-        table = build_visibility_table(model, **options, progress=progress)
-        self._store_table(name, entry["sha256"], table)
-        return model.with_visibility(table)
+        (when readable) and store it (``progress``: a tqdm bar; ``proxy_meter``: choose the
+        shape's proxy again, see :meth:`_store_table`)."""
+        table = build_visibility_table(model, **stored_build_options(old_table), progress=progress)
+        model = model.with_visibility(table)
+        self._store_table(name, entry["sha256"], model, proxy_meter)
+        return model
 
-    def rebuild_visibility(self, name: str, *, progress: bool = False) -> FacetModel:
+    def rebuild_visibility(
+        self, name: str, *, progress: bool = False, proxy_meter: ProxyMeter | None = None
+    ) -> FacetModel:
         """Rebuild and store the visibility table of a non-convex shape (e.g. one stored in an
         older table format, or added without one), keeping its grid resolution and sampling.
-        ``progress``: a tqdm bar.
+        ``progress``: a tqdm bar. ``proxy_meter`` (as in :meth:`add`): a shape with a
+        level-of-detail proxy gets it chosen and measured again, with the new table.
 
         Returns
         -------
@@ -299,7 +297,8 @@ class ShapeLibrary:
         if model.is_convex:
             return model
         old = entry.get("visibility")
-        return self._rebuild(name, model, entry, self.path / old if old else None, progress)
+        meter = proxy_meter if entry.get("proxy") is not None else None
+        return self._rebuild(name, model, entry, self.path / old if old else None, progress, meter)
 
     def validate(self, name: str) -> FacetModel:
         """Check one shape: checksum, mesh validity, materials, table of non-convex shapes,
@@ -404,7 +403,8 @@ class ShapeLibrary:
         logger.info(
             "read %s: %d facets in %.1f s", mesh, len(model.faces), time.perf_counter() - started
         )
-        articulation = _articulation(parts, model, name, mesh)
+        groups, where = model.group_names, f"shape {name!r} ({mesh})"
+        articulation = None if parts is None else Articulation.from_list(parts, groups, where)
         record = {"source": mesh.name, "source_sha256": file_sha256(mesh), **dict(provenance or {})}
         table_options = (
             {"resolution": resolution, "samples": samples, "spacing": spacing, "progress": progress}
@@ -445,7 +445,8 @@ class ShapeLibrary:
         check_name(name)
         self._check_free(name, force)
         validate(model)
-        articulation = _articulation(parts, model, name, None)
+        groups, where = model.group_names, f"shape {name!r}"
+        articulation = None if parts is None else Articulation.from_list(parts, groups, where)
         record = {**model.provenance, **dict(provenance or {})}
         table_options = {"resolution": resolution, "samples": samples, "spacing": spacing}
         return self._commit(
@@ -509,7 +510,7 @@ class ShapeLibrary:
             )
             if not stored.is_convex and table_options is not None:
                 if announce is not None:
-                    sizes = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+                    sizes = {k: table_options[k] for k in _TABLE_OPTIONS}
                     announce(describe_build(stored, **sizes))
                 table = build_visibility_table(stored, **table_options)
                 final["visibility"] = self.path / f"{name}.visibility.npz"
@@ -520,7 +521,7 @@ class ShapeLibrary:
             if proxy_meter is not None and len(stored.faces) > PROXY_MIN_FACETS:
                 options = None
                 if table_options is not None:  # the proxy's table: the shape's sampling
-                    options = {k: table_options[k] for k in ("resolution", "samples", "spacing")}
+                    options = {k: table_options[k] for k in _TABLE_OPTIONS}
                 proxy = stage_proxy(
                     self.path,
                     stored,
@@ -549,27 +550,39 @@ class ShapeLibrary:
             for path in staged.values():
                 path.unlink(missing_ok=True)
 
-    def _store_table(self, name: str, mesh_sha256: str, table: VisibilityTable) -> None:
-        """Cache a lazily built table beside the mesh (if the entry is unchanged)."""
-        final = self.path / f"{name}.visibility.npz"
-        staged = temp_path(self.path, f".{name}.", ".npz")
+    def _store_table(
+        self, name: str, mesh_sha256: str, model: FacetModel, meter: ProxyMeter | None = None
+    ) -> None:
+        """Store the table of ``model`` (built lazily or rebuilt) beside its mesh, and with
+        ``meter`` its level-of-detail proxy chosen again for the new table, in one swap (if
+        the entry is unchanged; a shape whose proxies now all fail loses its proxy)."""
+        final = {"visibility": self.path / f"{name}.visibility.npz"}
+        staged = {"visibility": temp_path(self.path, f".{name}.", ".npz")}
         try:
-            table.save(staged)
+            model.visibility.save(staged["visibility"])
+            if meter is not None:
+                options = {key: getattr(model.visibility, key) for key in _TABLE_OPTIONS}
+                record = stage_proxy(
+                    self.path, model, meter, table_options=options, final=final, staged=staged
+                )
             with self._locked() as manifest:
                 entry = manifest["shapes"].get(name)
                 if entry is None or entry.get("sha256") != mesh_sha256:
                     return
-                entry["visibility"] = final.name
-                entry["visibility_sha256"] = file_sha256(staged)
+                entry["visibility"] = final["visibility"].name
+                entry["visibility_sha256"] = file_sha256(staged["visibility"])
                 entry.pop("shadows", None)
-                swap_in(
-                    {"visibility": staged},
-                    {"visibility": final},
-                    [],
-                    lambda: self._write_manifest(manifest),
-                )
+                old_proxy = []
+                if meter is not None:
+                    old_proxy = [
+                        self.path / f for f in entry_files({"proxy": entry.pop("proxy", None)})
+                    ]
+                    if record is not None:
+                        entry["proxy"] = record
+                swap_in(staged, final, old_proxy, lambda: self._write_manifest(manifest))
         finally:
-            staged.unlink(missing_ok=True)
+            for path in staged.values():
+                path.unlink(missing_ok=True)
 
     def remove(self, name: str) -> None:
         """Remove a shape and its files."""
@@ -583,15 +596,3 @@ class ShapeLibrary:
             self._write_manifest(manifest)
             for file_name in entry_files(entry):
                 (self.path / file_name).unlink(missing_ok=True)
-
-
-def _articulation(
-    parts: Any, model: FacetModel, name: str, mesh: Path | None
-) -> Articulation | None:
-    """``parts`` validated against the model's groups (None when not given)."""
-    if parts is None or isinstance(parts, Articulation):
-        if parts is not None:
-            Articulation.from_list(parts.to_list(), model.group_names, f"shape {name!r}")
-        return parts
-    where = f"shape {name!r}" + (f" ({mesh})" if mesh is not None else "")
-    return Articulation.from_list(parts, model.group_names, where)

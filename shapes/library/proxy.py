@@ -29,7 +29,7 @@ from shapes.errors import ShapeError
 from shapes.files import file_sha256, temp_path
 from shapes.io import write_obj
 from shapes.model import FacetModel
-from shapes.validation import validate
+from shapes.validation import degenerate_facets, validate
 from shapes.visibility.build import build_visibility_table
 
 __all__ = [
@@ -107,6 +107,9 @@ def decimate(model: FacetModel, n_facets: int) -> FacetModel:
             mesh = mesh.simplify_quadric_decimation(face_count=target)
         if convex:  # the optimal vertex positions leave a convex body slightly dented
             mesh = mesh.convex_hull
+        # collapsed edges of thin parts (a CAD model's plates) leave zero-area facets
+        mesh.update_faces(~degenerate_facets(mesh.area_faces, model.scale))
+        mesh.remove_unreferenced_vertices()
         vertices.append(np.asarray(mesh.vertices, dtype=float))
         faces.append(np.asarray(mesh.faces, dtype=np.int64) + offset)
         groups.append(np.full(len(mesh.faces), k, dtype=np.int64))
@@ -192,9 +195,9 @@ def stage_proxy(
     meter: ProxyMeter,
     *,
     table_options: Mapping[str, Any] | None,
-    announce: Callable[[str], None] | None,
     final: dict[str, Path],
     staged: dict[str, Path],
+    announce: Callable[[str], None] | None = None,
 ) -> dict[str, Any] | None:
     """Choose the proxy of ``model`` (:func:`choose_proxy`) and write it (and its table)
     under temporary names in ``folder`` for a library transaction, adding their final and

@@ -45,7 +45,7 @@ from shapes.visibility.table import (
 if TYPE_CHECKING:
     from shapes.model import FacetModel
 
-__all__ = ["build_visibility_table", "describe_build"]
+__all__ = ["build_visibility_table", "describe_build", "stored_build_options"]
 
 logger = logging.getLogger(__name__)
 
@@ -170,6 +170,25 @@ def describe_build(
         f"{directions} directions × {points} sample points, about {_duration(seconds)} "
         f"on {threads} thread{'s' if threads > 1 else ''}"
     )
+
+
+def stored_build_options(path: str | os.PathLike[str] | None) -> dict[str, Any]:
+    """``resolution``, ``samples`` and ``spacing`` of the table file at ``path`` (those
+    it lacks, or all when it is missing or unreadable: the defaults), to rebuild it alike."""
+    options: dict[str, Any] = {
+        "resolution": DEFAULT_RESOLUTION,
+        "samples": DEFAULT_SAMPLES,
+        "spacing": DEFAULT_SPACING,
+    }
+    if path is not None and os.path.isfile(path):
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                for key, value in options.items():
+                    if key in data.files:
+                        options[key] = type(value)(data[key])
+        except (OSError, ValueError):
+            pass  # an unreadable old table: the defaults
+    return options
 
 
 def _duration(seconds: float) -> str:

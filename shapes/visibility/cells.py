@@ -10,10 +10,72 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cell_corners", "corner_words", "facing_flags", "partial_cells"]
+__all__ = ["cell_corners", "cell_entries", "corner_words", "facing_flags", "partial_cells"]
 
 _BLOCK_ROWS = 512  # directions or cells per unpacked block
 _ENTRY_BLOCK = 1 << 20  # cell entries whose words are gathered at a time
+
+
+def cell_entries(
+    bits: np.ndarray,
+    segments: dict[str, np.ndarray],
+    *,
+    node_index: np.ndarray,
+    directions: np.ndarray,
+    normals: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """Per grid cell, the facets that face one of its corners and are not fully visible
+    from all three, with their points' bits at the three corners.
+
+    Returns ``cell_start`` (cells + 1), ``entry_facet`` (E, int32) in cell order;
+    ``entry_word`` (E): first row of the entry's block of ``cell_words`` (S_cells, 3), one
+    row per segment of the facet (the segment's bits at each corner, masked to the segment).
+    A lookup then reads two cells' entries, each a contiguous run, instead of six scattered
+    rows. ``entry_word`` is int32 when the rows fit (a 5·10⁴-facet model has ~2.5·10⁷
+    entries: half the memory of int64).
+
+    Parameters
+    ----------
+    bits : (D, W) uint64
+        The table's bits.
+    segments : dict
+        ``segment_start`` (K + 1), ``segment_word``, ``segment_mask`` (S) of the segments
+        sorted by facet.
+    node_index : (6, n + 1, n + 1) int
+        The grid's node of each face's grid point.
+    directions : (D, 3) float
+        Grid directions, grid frame.
+    normals : (K, 3) float
+        Facet normals, grid frame.
+    """
+    from shapes.visibility.kernels import full_flags  # numba: compiled on first use
+
+    start, k = segments["segment_start"], len(normals)
+    full_words = np.empty((len(bits), -(-k // 64)), dtype=np.uint64)
+    full_flags(bits, start, segments["segment_word"], segments["segment_mask"], full_words)
+    corners = cell_corners(node_index)
+    front = facing_flags(directions, normals)
+    cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
+    del full_words, front
+    count = np.diff(start)[facet]
+    entry_word = np.cumsum(count, dtype=np.int32 if count.sum() < 2**31 else np.int64)
+    entry_word -= count
+    del count
+    cell_words = corner_words(
+        bits,
+        corners,
+        cell,
+        facet,
+        segment_start=start,
+        segment_word=segments["segment_word"],
+        segment_mask=segments["segment_mask"],
+    )
+    return {
+        "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
+        "entry_facet": facet,
+        "entry_word": entry_word,
+        "cell_words": cell_words,
+    }
 
 
 def cell_corners(node_index: np.ndarray) -> np.ndarray:

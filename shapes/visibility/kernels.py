@@ -178,12 +178,12 @@ def joint_rows(
         whose facet faces a corner of the cell and is not fully visible from all three.
     cell_word_start : (cells + 1,) int64
         Rows of ``cell_words`` holding the bits of cell ``c``'s entries (for prefetching).
-    entry_value : (E, 4) float64
+    entry_value : (E, 4) float32 (float64 above 2²⁴ columns)
         Per entry: the visible fraction of its facet from each of the cell's three corners,
-        and its output column (an integer-valued float: one record of 32 bytes per entry).
+        and its output column (an integer-valued float: one record of 16 bytes per entry).
     entry_facet : (E,) int32
         Facet of each entry.
-    entry_word : (E,) int64
+    entry_word : (E,) int32 (int64 above 2³¹ rows of ``cell_words``)
         First row of the entry's block in ``cell_words``: one row per segment of the facet.
     cell_words : (S_cells, 3) uint64
         A segment's points' bits from the cell's three corners (masked to the segment).
@@ -279,11 +279,12 @@ def joint_rows(
 
 @njit(**_JIT)
 def _prefetch_cells(cells, cell_start, cell_word_start, values, entry_word, words):
-    """Prefetch the entries (values, word offsets, bits) of the two cells ``cells``."""
+    """Prefetch the entries (values, word offsets, bits) of the two cells ``cells``, one
+    64-byte cache line at a time."""
     for c in (cells[0], cells[1]):
-        for i in range(4 * cell_start[c], 4 * cell_start[c + 1], 8):
+        for i in range(4 * cell_start[c], 4 * cell_start[c + 1], 64 // values.itemsize):
             _prefetch(values, i)
-        for i in range(cell_start[c], cell_start[c + 1], 8):
+        for i in range(cell_start[c], cell_start[c + 1], 64 // entry_word.itemsize):
             _prefetch(entry_word, i)
         for i in range(3 * cell_word_start[c], 3 * cell_word_start[c + 1], 8):
             _prefetch(words, i)

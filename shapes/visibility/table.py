@@ -28,7 +28,7 @@ from array_api_compat import array_namespace
 from shapes.compiled import CompiledFacets
 from shapes.errors import ShapeError
 from shapes.files import write_npz
-from shapes.visibility.cells import cell_corners, corner_words, facing_flags, partial_cells
+from shapes.visibility.cells import cell_entries
 from shapes.visibility.directions import CubeSphereGrid
 
 __all__ = ["DEFAULT_RESOLUTION", "FORMAT_VERSION", "TableFormatError", "VisibilityTable"]
@@ -268,42 +268,16 @@ class VisibilityTable:
         return self._cache["segments"]
 
     def _cells(self) -> dict[str, np.ndarray]:
-        """Per grid cell, the facets that face one of its corners and are not fully visible
-        from all three, with their points' bits at the three corners (cached).
-
-        ``cell_start`` (cells + 1), ``entry_facet`` (E) in cell order; ``entry_word`` (E):
-        first row of the entry's block of ``cell_words`` (S_cells, 3), one row per segment of
-        the facet (the segment's bits at each corner, masked to the segment). A lookup then
-        reads two cells' entries, each a contiguous run, instead of six scattered rows.
-        """
+        """Per grid cell, the facets partly shadowed around it and their points' bits at
+        its corners (:func:`~shapes.visibility.cells.cell_entries`, cached)."""
         if "cells" not in self._cache:
-            seg = self._segments()
-            start, k = seg["segment_start"], self.n_facets
-            full_words = np.empty((len(self.grid), -(-k // 64)), dtype=np.uint64)
-            _kernels().full_flags(
-                self.bits, start, seg["segment_word"], seg["segment_mask"], full_words
-            )
-            corners = cell_corners(self.grid.node_index)
-            front = facing_flags(self.grid.directions, self.normals)
-            cell, facet = partial_cells(full_words.view(np.uint8), front, corners, k)
-            del full_words, front
-            entry_word = np.cumsum(np.diff(start)[facet])  # int64
-            entry_word -= np.diff(start)[facet]
-            cell_words = corner_words(
+            self._cache["cells"] = cell_entries(
                 self.bits,
-                corners,
-                cell,
-                facet,
-                segment_start=start,
-                segment_word=seg["segment_word"],
-                segment_mask=seg["segment_mask"],
+                self._segments(),
+                node_index=self.grid.node_index,
+                directions=self.grid.directions,
+                normals=self.normals,
             )
-            self._cache["cells"] = {
-                "cell_start": np.searchsorted(cell, np.arange(len(corners) + 1)).astype(np.int64),
-                "entry_facet": facet,
-                "entry_word": entry_word,
-                "cell_words": cell_words,
-            }
         return self._cache["cells"]
 
     def _cell_entries(self, order: np.ndarray) -> dict[str, np.ndarray]:
@@ -328,7 +302,8 @@ class VisibilityTable:
             entry_cell = np.repeat(np.arange(len(start) - 1), np.diff(start))
             cell_start = np.searchsorted(entry_cell[source], np.arange(len(start)))
             column = columns[first_column[entry_facet] + step]
-        value = np.empty((len(entry_facet), 4))
+        # 16-byte records; a float32 holds every column index below 2²⁴ exactly
+        value = np.empty((len(entry_facet), 4), np.float32 if len(order) <= 2**24 else float)
         _kernels().cell_fractions(
             cells["cell_words"],
             entry_word,
@@ -338,9 +313,13 @@ class VisibilityTable:
             value[:, :3],
         )
         value[:, 3] = column
+        del column
+        first_word = np.full(len(start), len(cells["cell_words"]), np.int64)
+        inner = start < len(facet)
+        first_word[inner] = cells["entry_word"][start[inner]]
         return {
             "cell_start": cell_start.astype(np.int64),
-            "cell_word_start": np.append(cells["entry_word"], len(cells["cell_words"]))[start],
+            "cell_word_start": first_word,
             "entry_value": value,
             "entry_facet": entry_facet,
             "entry_word": entry_word,

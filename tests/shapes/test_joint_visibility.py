@@ -266,7 +266,8 @@ def test_fused_table_flux_matches_the_torch_table_path(name):
     fused = Renderer(shape, shadows="table").flux(q, sun, obs)
     eager = Renderer(shape, shadows="table", backend="torch").flux(q, sun, obs)
     np.testing.assert_array_equal(fused == 0.0, eager == 0.0)  # dark epochs stay dark
-    np.testing.assert_allclose(fused, eager, rtol=1e-12, atol=0.0)
+    # the fused path keeps the corners' visible fractions as float32 (2⁻²⁴ relative)
+    np.testing.assert_allclose(fused, eager, rtol=2e-7, atol=0.0)
     single = Renderer(shape, shadows="table", dtype=torch.float32).flux(q, sun, obs)
     np.testing.assert_allclose(single, fused, rtol=1e-4, atol=1e-6 * fused.max())
 
@@ -305,17 +306,18 @@ def _joint_from_bits(table, light, view):
 def test_cell_lookup_equals_the_blend_of_the_bits(builtin, name):
     """The per-cell entry lists (corner fractions, corner words) give the barycentric blend
     of every point's bits, computed here from the raw bit rows: at random directions, at low
-    phase angles (most points shared by both sides) and for a rotated body frame."""
+    phase angles (most points shared by both sides) and for a rotated body frame. The
+    one-sided entries hold the corners' visible fractions as float32: within 1e-7."""
     table = builtin.load(name).compiled().visibility
     light = _random_directions(120, seed=31)
     view = np.concatenate([_random_directions(60, seed=32), _unit(light[60:] + 0.05)])
     np.testing.assert_allclose(
-        table.joint(light, view), _joint_from_bits(table, light, view), rtol=0, atol=1e-12
+        table.joint(light, view), _joint_from_bits(table, light, view), rtol=0, atol=1e-7
     )
     turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     rotated = table.rotated(turn)
     np.testing.assert_allclose(
-        rotated.joint(light, view), _joint_from_bits(rotated, light, view), rtol=0, atol=1e-12
+        rotated.joint(light, view), _joint_from_bits(rotated, light, view), rtol=0, atol=1e-7
     )
 
 

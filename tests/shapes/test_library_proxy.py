@@ -45,6 +45,15 @@ def test_decimation_of_several_groups_keeps_each_group():
         )
 
 
+def test_decimation_of_thin_plates_drops_collapsed_facets():
+    """A box-wing's solar arrays are single sheets: collapsed edges leave zero-area facets,
+    which the proxy drops (it stays a valid mesh with every group)."""
+    wing = primitives.box_wing(subdivisions=8)
+    proxy = decimate(wing, 768)
+    assert len(proxy.faces) <= 800 and proxy.group_names == wing.group_names
+    assert proxy.areas.min() > 0.0
+
+
 def test_bad_facet_count_and_tolerance_are_refused():
     sphere = primitives.icosphere(1.0, subdivisions=2)
     with pytest.raises(ShapeError, match="at least 4 facets"):
@@ -96,3 +105,28 @@ def test_a_malformed_proxy_record_is_named(tmp_path, monkeypatch):
     manifest.write_text(json.dumps(data))
     with pytest.raises(ShapeError, match=r"proxy of shape 'ball': field 'rms_mag' must be a"):
         library.proxy_info("ball")
+
+
+def test_rebuild_chooses_the_proxy_again_with_the_new_table(tmp_path, monkeypatch):
+    """Rebuilding a shape's table chooses and measures its proxy again (here the meter is
+    more lenient the second time: a smaller proxy passes), with its own table at the
+    shape's sampling, and swaps the files."""
+    monkeypatch.setattr(library_core, "PROXY_MIN_FACETS", 1000)
+    library = ShapeLibrary(tmp_path / "lib")
+    wing = primitives.box_wing(subdivisions=12)  # 6336 facets, not convex
+    small = {"resolution": 4, "samples": 4, "spacing": 0.2}
+    library.add_model("wing", wing, proxy_meter=_meter, **small)
+    before = library.info("wing")["proxy"]
+    assert before["facets"] > 1200 and before["visibility"] == "wing.proxy.visibility.npz"
+    model = library.rebuild_visibility("wing", proxy_meter=lambda m, p: _error(6.0 / len(p.faces)))
+    after = library.info("wing")["proxy"]
+    assert model.visibility.resolution == 4
+    assert after["facets"] < 1000 and after["rms_mag"] == pytest.approx(6.0 / after["facets"])
+    proxy = library.load_proxy("wing")
+    assert len(proxy.faces) == after["facets"] and proxy.visibility.resolution == 4
+    assert after["visibility_sha256"] != before["visibility_sha256"]
+    assert sorted(p.name for p in library.path.iterdir() if p.name.startswith(("wing", "."))) == [
+        ".manifest.lock", "wing.obj", "wing.proxy.obj", "wing.proxy.visibility.npz",
+        "wing.visibility.npz",
+    ]  # fmt: skip
+    library.validate("wing")
