@@ -332,7 +332,7 @@ def _add(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
         parts=_read_parts(args.parts) if args.parts else None,
         visibility_table=args.shadows == "table",
         announce=announce,
-        proxy_meter=ProxyErrorMeter() if args.proxy == "auto" else None,
+        proxy_meter=ProxyErrorMeter(progress=show_progress(args)) if args.proxy == "auto" else None,
     )
     if not args.quiet:
         print(
@@ -380,9 +380,9 @@ def _rebuild(library: shapes.ShapeLibrary, args: argparse.Namespace) -> int:
 
     names = [args.name] if args.name else library.names()
     for name in names:
-        model = library.rebuild_visibility(
-            name, progress=show_progress(args), proxy_meter=ProxyErrorMeter()
-        )
+        progress = show_progress(args)
+        meter = ProxyErrorMeter(progress=progress)
+        model = library.rebuild_visibility(name, progress=progress, proxy_meter=meter)
         table = model.visibility
         if args.quiet:
             continue

@@ -12,6 +12,8 @@ difference is the shape's alone. Geometries where either model is dark are left 
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from filters.attitude import random_quaternion
@@ -28,6 +30,7 @@ PROXY_SEED = 20261206
 MAX_PHASE_DEG = 120.0
 _SUN_DISTANCE_M = 1.495978707e11
 _OBSERVER_DISTANCE_M = 1.0e9
+_CHUNK = 1000  # geometries rendered a call (one progress-bar step)
 
 
 def random_geometries(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -69,18 +72,35 @@ class ProxyErrorMeter:
         Random geometries (≥ 10).
     seed : int
         Seed of the geometries.
+    progress : bool
+        Draw a tqdm bar on stderr for each model rendered.
     """
 
-    def __init__(self, geometries: int = PROXY_GEOMETRIES, seed: int = PROXY_SEED) -> None:
+    def __init__(
+        self, geometries: int = PROXY_GEOMETRIES, seed: int = PROXY_SEED, *, progress: bool = False
+    ) -> None:
         if geometries < 10:
             raise ValueError(f"proxy error: at least 10 geometries are needed, got {geometries}")
         self.geometries = int(geometries)
         self.seed = int(seed)
+        self.progress = bool(progress)
         self._geometry = random_geometries(self.geometries, self.seed)
         self._reference: tuple[FacetModel, np.ndarray, str] | None = None
 
-    def _magnitudes(self, renderer: Renderer) -> np.ndarray:
-        return np.asarray(renderer.magnitude(*self._geometry), dtype=float)
+    def _magnitudes(self, renderer: Renderer, label: str) -> np.ndarray:
+        from tqdm import tqdm
+
+        q, sun, observer = self._geometry
+        out = np.empty(len(q))
+        bar = tqdm(
+            total=len(q), desc=label, unit="geometry", disable=not self.progress, file=sys.stderr
+        )
+        with bar:
+            for first in range(0, len(q), _CHUNK):
+                rows = slice(first, first + _CHUNK)
+                out[rows] = renderer.magnitude(q[rows], sun[rows], observer[rows])
+                bar.update(len(out[rows]))
+        return out
 
     def __call__(self, model: FacetModel, proxy: FacetModel) -> dict:
         """The error record of ``proxy`` against ``model``.
@@ -102,7 +122,7 @@ class ProxyErrorMeter:
         if self._reference is None or self._reference[0] is not model:
             full_renderer = Renderer(model)
             if approx_renderer.shadows == full_renderer.shadows:
-                magnitudes = self._magnitudes(full_renderer)
+                magnitudes = self._magnitudes(full_renderer, f"{len(model.faces)} facets")
                 self._reference = (model, magnitudes, full_renderer.shadows)
             shadows = full_renderer.shadows
         else:
@@ -113,7 +133,7 @@ class ProxyErrorMeter:
                 f"the full shape with {shadows!r}"
             )
         full = self._reference[1]
-        approx = self._magnitudes(approx_renderer)
+        approx = self._magnitudes(approx_renderer, f"proxy, {len(proxy.faces)} facets")
         seen = np.isfinite(full) & np.isfinite(approx)
         if not np.any(seen):
             raise ValueError(f"{model.name}: no random geometry shows both the shape and proxy")

@@ -242,9 +242,7 @@ class ShapeLibrary:
         try:
             table = self._read_table(record)
         except (ShapeError, TableFormatError) as exc:
-            raise ShapeError(
-                f"{where}: {exc}: add the shape again (--force) to rebuild it"
-            ) from None
+            raise ShapeError(f"{where}: {exc}: {self._rebuild_hint(name)}") from None
         return model if table is None else model.with_visibility(table)
 
     def missing_table(self, name: str) -> str:
@@ -270,12 +268,11 @@ class ShapeLibrary:
         progress: bool = False,
         proxy_meter: ProxyMeter | None = None,
     ) -> FacetModel:
-        """Build the table of ``model`` with the resolution and sampling of ``old_table``
-        (when readable) and store it (``progress``: a tqdm bar; ``proxy_meter``: choose the
-        shape's proxy again, see :meth:`_store_table`)."""
+        """Build and store the table of ``model`` with the sampling of ``old_table`` (when
+        readable); ``progress``: tqdm bars; ``proxy_meter``: see :meth:`_store_table`."""
         table = build_visibility_table(model, **stored_build_options(old_table), progress=progress)
         model = model.with_visibility(table)
-        self._store_table(name, entry["sha256"], model, proxy_meter)
+        self._store_table(name, entry["sha256"], model, proxy_meter, progress)
         return model
 
     def rebuild_visibility(
@@ -283,8 +280,8 @@ class ShapeLibrary:
     ) -> FacetModel:
         """Rebuild and store the visibility table of a non-convex shape (e.g. one stored in an
         older table format, or added without one), keeping its grid resolution and sampling.
-        ``progress``: a tqdm bar. ``proxy_meter`` (as in :meth:`add`): a shape with a
-        level-of-detail proxy gets it chosen and measured again, with the new table.
+        ``progress``: tqdm bars. ``proxy_meter`` (as in :meth:`add`): a shape's proxy is
+        chosen and measured again with the new table.
 
         Returns
         -------
@@ -522,6 +519,7 @@ class ShapeLibrary:
                 options = None
                 if table_options is not None:  # the proxy's table: the shape's sampling
                     options = {k: table_options[k] for k in _TABLE_OPTIONS}
+                    options["progress"] = table_options.get("progress", False)
                 proxy = stage_proxy(
                     self.path,
                     stored,
@@ -551,17 +549,23 @@ class ShapeLibrary:
                 path.unlink(missing_ok=True)
 
     def _store_table(
-        self, name: str, mesh_sha256: str, model: FacetModel, meter: ProxyMeter | None = None
+        self,
+        name: str,
+        mesh_sha256: str,
+        model: FacetModel,
+        meter: ProxyMeter | None = None,
+        progress: bool = False,
     ) -> None:
-        """Store the table of ``model`` (built lazily or rebuilt) beside its mesh, and with
-        ``meter`` its level-of-detail proxy chosen again for the new table, in one swap (if
-        the entry is unchanged; a shape whose proxies now all fail loses its proxy)."""
+        """Store the table of ``model`` beside its mesh, and with ``meter`` its proxy chosen
+        again for the new table (``progress``: its table's bar), in one swap if the entry is
+        unchanged (a shape whose proxies now all fail loses its proxy)."""
         final = {"visibility": self.path / f"{name}.visibility.npz"}
         staged = {"visibility": temp_path(self.path, f".{name}.", ".npz")}
         try:
             model.visibility.save(staged["visibility"])
             if meter is not None:
                 options = {key: getattr(model.visibility, key) for key in _TABLE_OPTIONS}
+                options["progress"] = progress
                 record = stage_proxy(
                     self.path, model, meter, table_options=options, final=final, staged=staged
                 )
@@ -572,14 +576,11 @@ class ShapeLibrary:
                 entry["visibility"] = final["visibility"].name
                 entry["visibility_sha256"] = file_sha256(staged["visibility"])
                 entry.pop("shadows", None)
-                old_proxy = []
-                if meter is not None:
-                    old_proxy = [
-                        self.path / f for f in entry_files({"proxy": entry.pop("proxy", None)})
-                    ]
-                    if record is not None:
-                        entry["proxy"] = record
-                swap_in(staged, final, old_proxy, lambda: self._write_manifest(manifest))
+                old = {"proxy": entry.pop("proxy", None)} if meter is not None else {}
+                if meter is not None and record is not None:
+                    entry["proxy"] = record
+                old_files = [self.path / file_name for file_name in entry_files(old)]
+                swap_in(staged, final, old_files, lambda: self._write_manifest(manifest))
         finally:
             for path in staged.values():
                 path.unlink(missing_ok=True)

@@ -44,3 +44,15 @@ def test_a_proxy_shadowed_otherwise_is_refused():
         ProxyErrorMeter(geometries=10)(sphere, dented)
     with pytest.raises(ValueError, match="at least 10 geometries"):
         ProxyErrorMeter(geometries=5)
+
+
+def test_a_progress_bar_leaves_the_record_unchanged(capsys):
+    """With ``progress`` each model's render draws a bar on stderr; the record is the same."""
+    sphere = primitives.icosphere(1.0, subdivisions=3)
+    proxy = decimate(sphere, 80)
+    quiet = ProxyErrorMeter(geometries=2500, seed=4)(sphere, proxy)
+    shown = ProxyErrorMeter(geometries=2500, seed=4, progress=True)(sphere, proxy)
+    assert shown["rms_mag"] == pytest.approx(quiet["rms_mag"], rel=1e-12)
+    assert shown["geometries"] == quiet["geometries"]
+    error = capsys.readouterr().err
+    assert "1280 facets" in error and "proxy, 80 facets" in error and "2500/2500" in error
