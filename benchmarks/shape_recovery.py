@@ -94,6 +94,7 @@ from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.geometry import phase_angle
 from shapes import FacetModel, Material, primitives
 
 MATERIAL = Material("ashikhmin-shirley", {"rd": 0.35, "rs": 0.25, "nu": 40, "nv": 40})
@@ -272,10 +273,7 @@ def seen_shares(shape: FacetModel, arcs: list[Observations]) -> list[float]:
 
 def _phase_deg(arc: Observations) -> np.ndarray:
     """Phase angles (deg, E) of an arc."""
-    sun, observer = arc.sun_vectors, arc.observer_vectors
-    cosine = np.sum(sun * observer, axis=1)
-    cosine /= np.linalg.norm(sun, axis=1) * np.linalg.norm(observer, axis=1)
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    return np.degrees(phase_angle(arc.sun_vectors, arc.observer_vectors))
 
 
 def identifiability(
