@@ -66,7 +66,7 @@ given, best of 3: the grid fit alone (design matrix + NNLS) and the full fit (tw
 refinements and polishes); and the **baseline** measured in the same run: the plain grid fit's
 held-out ratio and normal errors on the first ``geo_tumbling`` runs against the full fit's.
 
-    python -m benchmarks.shape_recovery [--runs 2] [--seed 34] [--sections geo_tumbling,...]
+    python -m benchmarks.shape_recovery [--runs 2] [--first-run 0] [--seed 34] [--sections geo_tumbling,...]
         [--normals 2000] [--materials fitted,known] [--objects box_3x2x1,...] [--out FILE]
 """
 
@@ -553,6 +553,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_sections_argument(parser, (*SCENARIOS, "speed"))
     parser.add_argument("--runs", type=int, default=2, help="runs per object and scenario")
+    parser.add_argument(
+        "--first-run", type=int, default=0, help="index of the first run (to split a long study)"
+    )
     parser.add_argument("--seed", type=int, default=34)
     parser.add_argument("--normals", type=int, default=2000)
     parser.add_argument("--objects", default="", help="comma-separated subset of the objects")
@@ -574,13 +577,14 @@ def main(argv: list[str] | None = None) -> None:
         if scenario not in args.sections:
             continue
         for name in chosen:
-            for run in range(args.runs):
+            for run in range(args.first_run, args.first_run + args.runs):
                 records.append(run_case(name, shapes[name], scenario, run, args))
     report = {
         "benchmark": "shape_recovery",
         "machine": machine_info(),
         "seed": args.seed,
         "runs_per_object": args.runs,
+        "first_run": args.first_run,
         "normals": args.normals,
         "summary": summarise(records),
         "records": records,
