@@ -67,7 +67,8 @@ refinements and polishes); and the **baseline** measured in the same run: the pl
 held-out ratio and normal errors on the first ``geo_tumbling`` runs against the full fit's.
 
     python -m benchmarks.shape_recovery [--runs 2] [--first-run 0] [--seed 34]
-        [--sections geo_tumbling,...] [--normals 2000] [--materials fitted,known] [--objects box_3x2x1,...] [--out FILE]
+        [--sections geo_tumbling,...] [--normals 2000] [--materials fitted,known]
+        [--objects box_3x2x1,...] [--out FILE]
 """
 
 from __future__ import annotations
