@@ -91,6 +91,7 @@ from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_materi
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import design_matrix
 from lightcurve.analysis.egi.joint import mirror_turns
+from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
 from lightcurve.photometry.render import Renderer, flux_to_magnitude
@@ -592,7 +593,7 @@ def main(argv: list[str] | None = None) -> None:
     }
     if "speed" in args.sections:
         report["speed"] = speed(args)
-    emit_report(report, args.out)
+    emit_report(json_ready(report), args.out)  # a mesh dark at an epoch fits at ∞ mag
 
 
 if __name__ == "__main__":
