@@ -114,7 +114,7 @@ HYPOTHESES = ("direct", "mirror")
 
 @dataclass(frozen=True)
 class Hypothesis:
-    """The best fit of one hypothesis over the rounds.
+    """The best fit of one hypothesis in a round (over its refined and estimated attitudes).
 
     Attributes
     ----------
