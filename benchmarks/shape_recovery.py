@@ -31,12 +31,14 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Jan�
     the ``geo_tumbling`` arc with the attitude **unknown**: the joint mode
     (:func:`lightcurve.joint_shape.fit_joint_shape`, material given, from the ellipsoid).
     The recovered frame is arbitrary, so the attitudes are compared after the constant
-    rotation ``R`` (proper, :func:`frame_alignment`) that best maps the fitted attitude
-    matrices onto the true ones over the arc (``A_true ≈ R A_fit``); ``attitude_error_deg``
-    is the angle of ``A_true Aᵀ_fit Rᵀ`` at the last epoch, and the held-out arc is
-    predicted at its true attitudes by the recovered mesh turned by ``R``. A light curve
-    cannot tell a shape from its mirror image under mirrored attitudes; the best improper
-    alignment's last-epoch error is printed too (``mirror_attitude_error_deg``).
+    rotation ``R`` (:func:`frame_alignment`) that best maps the fitted attitude matrices onto
+    the true ones over the arc (``A_true ≈ R A_fit``). One arc leaves a second ambiguity,
+    the mirror (:func:`lightcurve.analysis.egi.joint.mirror_turns`): ``A_true ≈ R A_fit R_m``
+    with the mirror-image shape, which maps the fitted body frame to the true one by the
+    improper ``−R``. Both alignments are computed; the one with the lower median error over
+    the arc is the comparison (``alignment``), ``attitude_error_deg`` its angle at the last
+    epoch, and the held-out arc is predicted at its true attitudes by the recovered mesh
+    mapped by it (the mirror image undone).
 
 Each run draws the object's state and the noise (0.02–0.05 mag, uniform) from
 ``default_rng([seed, run, k])``; a second arc of the same object (another night, another
@@ -64,8 +66,9 @@ given, best of 3: the grid fit alone (design matrix + NNLS) and the full fit (tw
 refinements and polishes); and the **baseline** measured in the same run: the plain grid fit's
 held-out ratio and normal errors on the first ``geo_tumbling`` runs against the full fit's.
 
-    python -m benchmarks.shape_recovery [--runs 2] [--seed 34] [--sections geo_tumbling,...]
-        [--normals 2000] [--materials fitted,known] [--objects box_3x2x1,...] [--out FILE]
+    python -m benchmarks.shape_recovery [--runs 2] [--first-run 0] [--seed 34]
+        [--sections geo_tumbling,...] [--normals 2000] [--materials fitted,known]
+        [--objects box_3x2x1,...] [--out FILE]
 """
 
 from __future__ import annotations
@@ -82,15 +85,18 @@ from benchmarks._machine import machine_info
 from benchmarks._report import add_sections_argument, emit_report
 from benchmarks._timing import best_time
 from benchmarks.mismatch_study import geo_geometry, leo_geometry
-from filters.attitude import attitude_matrix, random_quaternion
+from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
 from lightcurve.analysis.convex.minkowski import equivalent_ellipsoid
 from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_material, normal_grid
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import design_matrix
+from lightcurve.analysis.egi.joint import mirror_turns
+from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
-from lightcurve.photometry.render import Renderer
+from lightcurve.photometry.render import Renderer, flux_to_magnitude
 from lightcurve.photometry.simulate import GaussianNoise, simulate
+from lightcurve.sky.geometry import phase_angle
 from shapes import FacetModel, Material, primitives
 
 MATERIAL = Material("ashikhmin-shirley", {"rd": 0.35, "rs": 0.25, "nu": 40, "nv": 40})
@@ -181,27 +187,29 @@ def _true_material() -> brdf.BRDF:
 
 
 def predicted(fit, solid, held_out: Observations, turn: np.ndarray | None = None) -> np.ndarray:
-    """Magnitudes of the reconstructed mesh (back in the body frame of the fit, then turned
-    by ``turn`` into the true body frame when given) with the fit's material, rendered at
-    the held-out arc's true attitudes."""
+    """Magnitudes of the reconstructed mesh (back in the body frame of the fit, then mapped
+    by the orthogonal ``turn`` into the true body frame when given; an improper one mirrors
+    it) with the fit's material, rendered at the held-out arc's true attitudes."""
     body = solid.model.vertices @ solid.principal_axes.T + solid.centroid
+    faces = solid.model.faces
     if turn is not None:
         body = body @ turn.T
+        if np.linalg.det(turn) < 0:  # a mirror image: keep the facets facing out
+            faces = faces[:, ::-1]
     material = Material(fit.material.name, fit.material.params)
-    model = FacetModel(body, solid.model.faces, materials=material)
+    model = FacetModel(body, faces, materials=material)
     q = truth_attitudes(held_out)
     return Renderer(model, shadows="none").magnitude(
         q, held_out.sun_vectors, held_out.observer_vectors
     )
 
 
-def frame_alignment(truth: np.ndarray, fitted: np.ndarray, *, proper: bool = True) -> np.ndarray:
+def frame_alignment(truth: np.ndarray, fitted: np.ndarray) -> np.ndarray:
     """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``.
 
     The orthogonal Procrustes solution (Schönemann 1966, "A generalized solution of the
     orthogonal Procrustes problem", Psychometrika 31, 1) of ``M = Σ A_true A_fitᵀ = U S Vᵀ``:
-    ``R = U diag(1, 1, ±det(U Vᵀ)) Vᵀ``, a proper rotation, or with ``proper=False`` the
-    best improper one (a mirror: ``det R = −1``).
+    ``R = U diag(1, 1, det(U Vᵀ)) Vᵀ``, a proper rotation.
 
     Parameters
     ----------
@@ -210,18 +218,36 @@ def frame_alignment(truth: np.ndarray, fitted: np.ndarray, *, proper: bool = Tru
     """
     matrices = attitude_matrix(truth), attitude_matrix(fitted)
     u, _, vt = np.linalg.svd(np.einsum("eij,ekj->ik", *matrices))
-    sign = np.linalg.det(u @ vt) * (1.0 if proper else -1.0)
-    return u @ np.diag([1.0, 1.0, sign]) @ vt
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
 
 
 def aligned_errors(truth: np.ndarray, fitted: np.ndarray, turn: np.ndarray) -> np.ndarray:
-    """Angles (deg, E) between ``A_true`` and ``R A_fit`` (``turn`` = R; an improper R
-    compares a mirrored attitude: the angle of the proper part ``−R A_fit``)."""
+    """Angles (deg, E) between ``A_true`` and ``R A_fit`` (``turn`` = R)."""
     matrices = np.einsum("ij,ejk->eik", turn, attitude_matrix(fitted))
-    if np.linalg.det(turn) < 0:
-        matrices = -matrices
     trace = np.einsum("eij,eij->e", attitude_matrix(truth), matrices)
     return np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def mirror_aligned(
+    truth: np.ndarray, fitted: list[np.ndarray], arcs: list[Observations]
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """The alignment of fitted to true attitudes modulo the mirror (module docstring,
+    ``geo_joint``): the per-epoch errors (deg), the map of the fitted body frame to the true
+    one (3, 3; improper for the mirror) and ``"direct"`` or ``"mirror"``."""
+    direct = np.concatenate(fitted)
+    turn = frame_alignment(truth, direct)
+    errors = aligned_errors(truth, direct, turn)
+    mirrored = np.concatenate(
+        [
+            quaternion_from_matrix(attitude_matrix(q) @ half)
+            for q, half in zip(fitted, mirror_turns(arcs), strict=True)
+        ]
+    )
+    mirror_turn = frame_alignment(truth, mirrored)
+    mirror_errors = aligned_errors(truth, mirrored, mirror_turn)
+    if np.median(mirror_errors) < np.median(errors):
+        return mirror_errors, -mirror_turn, "mirror"
+    return errors, turn, "direct"
 
 
 def face_errors(shape: FacetModel, normals: np.ndarray, areas: np.ndarray) -> list[float]:
@@ -247,6 +273,41 @@ def seen_shares(shape: FacetModel, arcs: list[Observations]) -> list[float]:
     return seen.mean(axis=0).tolist()
 
 
+def _phase_deg(arc: Observations) -> np.ndarray:
+    """Phase angles (deg, E) of an arc."""
+    return np.degrees(phase_angle(arc.sun_vectors, arc.observer_vectors))
+
+
+def identifiability(
+    shape: FacetModel, arcs: list[Observations], held_out: Observations
+) -> dict[str, Any]:
+    """What the fitted arcs leave undetermined about the held-out one (true attitudes).
+
+    ``heldout_unseen_flux_share``: the median over the held-out epochs of the share of the
+    true mesh's flux (true material) from facets never both lit and seen at the fitted
+    epochs — flux no fit can predict; ``heldout_phase_outside_deg``: the median distance of
+    the held-out phase angles outside the range the fitted arcs span (0 inside) — an EGI
+    fitted over a few degrees of phase is extrapolated there; ``phase_deg``: the ranges.
+    """
+    compiled = shape.compiled()
+    fitted = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
+    seen = np.any(
+        (fitted.light @ compiled.normals.T > 0) & (fitted.view @ compiled.normals.T > 0), 0
+    )
+    flux = design_matrix(compiled.normals, _epochs(held_out), _true_material()) * compiled.areas
+    share = flux[:, ~seen].sum(axis=1) / flux.sum(axis=1)
+    ranges = [(float(p.min()), float(p.max())) for p in map(_phase_deg, arcs)]
+    phase = _phase_deg(held_out)
+    outside = np.min(
+        [np.clip(np.maximum(low - phase, phase - high), 0.0, None) for low, high in ranges], axis=0
+    )
+    return {
+        "heldout_unseen_flux_share": float(np.median(share)),
+        "heldout_phase_outside_deg": float(np.median(outside)),
+        "phase_deg": {"fitted": ranges, "held_out": [float(phase.min()), float(phase.max())]},
+    }
+
+
 def score(
     shape,
     fit,
@@ -268,10 +329,16 @@ def score(
     rms = float(np.sqrt(np.mean(residual**2))) if not dark else None
     normals = fit.normals if turn is None else fit.normals @ turn.T
     errors = face_errors(shape, normals, fit.areas)
+    # the EGI's own prediction (no Minkowski step): tells the fit's error from the solid's
+    egi_flux = design_matrix(normals, _epochs(held_out), fit.material) @ fit.areas
+    with np.errstate(divide="ignore"):
+        egi_residual = held_out.magnitudes - flux_to_magnitude(egi_flux)
+    egi_rms = float(np.sqrt(np.mean(egi_residual**2)))
     return {
         "material": {"brdf": fit.material.name, "params": fit.material.params},
         "heldout_rms_mag": rms,
         "heldout_ratio": None if dark else rms / noise_mag,
+        "heldout_ratio_egi": _finite(egi_rms / noise_mag),
         "heldout_dark_epochs": dark,
         "axis_ratios": solid.axis_ratios.tolist(),
         "true_axis_ratios": truth.tolist(),
@@ -289,17 +356,16 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     joint = fit_joint_shape(arcs, _true_material(), normals=args.normals, seed=args.seed)
     seconds = time.perf_counter() - start
     truth = np.concatenate([truth_attitudes(arc) for arc in arcs])
-    fitted = np.concatenate(joint.attitudes)
-    turn = frame_alignment(truth, fitted)
-    errors = aligned_errors(truth, fitted, turn)
-    mirror = aligned_errors(truth, fitted, frame_alignment(truth, fitted, proper=False))
+    errors, turn, alignment = mirror_aligned(truth, joint.attitudes, arcs)
     return {
         "fit_s": seconds,
         "fit_rms_mag": _finite(joint.fit.residual_rms_mag(joint.epochs)),
         "rounds": [vars(r) for r in joint.rounds],
+        "hypotheses": [vars(h) for h in joint.hypotheses],
+        "ambiguous": joint.ambiguous,
+        "alignment": alignment,
         "attitude_error_deg": float(errors[-1]),
         "attitude_error_median_deg": float(np.median(errors)),
-        "mirror_attitude_error_deg": float(mirror[-1]),
         **score(shape, joint.fit, held_out, noise_mag, turn),
     }
 
@@ -335,6 +401,7 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
         "run": run,
         "noise_mag": noise_mag,
         "epochs": int(sum(len(arc) for arc in arcs)),
+        **identifiability(shape, arcs, held_out),
     }
     if scenario == "geo_joint":
         fitters = {"joint": lambda: _joint_record(shape, arcs, held_out, noise_mag, args)}
@@ -409,13 +476,35 @@ def speed(args) -> dict[str, Any]:
     }
 
 
+#: Held-out arcs whose median phase angle lies within this of the fitted range count as
+#: inside it (:func:`identifiability`).
+INSIDE_PHASE_DEG = 1.0
+
+
+def _by_phase(cases: list[dict[str, Any]], ratio: np.ndarray) -> dict[str, Any]:
+    """The held-out target split by whether the held-out phase angles lie inside the fitted
+    range, and the median share of held-out flux from facets the fitted arcs never showed."""
+    inside = np.array([c["heldout_phase_outside_deg"] <= INSIDE_PHASE_DEG for c in cases])
+    out: dict[str, Any] = {
+        "heldout_unseen_flux_share_median": float(
+            np.median([c["heldout_unseen_flux_share"] for c in cases])
+        ),
+        "heldout_unseen_flux_share_max": float(max(c["heldout_unseen_flux_share"] for c in cases)),
+    }
+    for name, mask in (("phase_inside", inside), ("phase_outside", ~inside)):
+        out[f"{name}_runs"] = int(mask.sum())
+        out[f"{name}_heldout_le_1_3"] = float(np.mean(ratio[mask] <= 1.3)) if mask.any() else None
+    return out
+
+
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per scenario and material mode: medians, worst values and the fractions on target."""
     out: dict[str, Any] = {}
     for scenario in SCENARIOS:
         for label in ("fitted", "known", "modes", "joint"):
-            found = [r[label] for r in records if r["scenario"] == scenario and label in r]
-            rows = [row for row in found if "error" not in row]
+            found = [r for r in records if r["scenario"] == scenario and label in r]
+            cases = [r for r in found if "error" not in r[label]]
+            rows = [r[label] for r in cases]
             failed = len(found) - len(rows)
             if not rows and not failed:
                 continue
@@ -434,6 +523,8 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
                 "normal_error_le_5deg": float(np.mean(normal <= 5.0)) if rows else None,
                 "fit_s_median": float(np.median([r["fit_s"] for r in rows])) if rows else None,
             }
+            if rows and "heldout_phase_outside_deg" in cases[0]:
+                out[f"{scenario}/{label}"] |= _by_phase(cases, ratio)
             seen = [
                 error
                 for r in rows
@@ -464,6 +555,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_sections_argument(parser, (*SCENARIOS, "speed"))
     parser.add_argument("--runs", type=int, default=2, help="runs per object and scenario")
+    parser.add_argument(
+        "--first-run", type=int, default=0, help="index of the first run (to split a long study)"
+    )
     parser.add_argument("--seed", type=int, default=34)
     parser.add_argument("--normals", type=int, default=2000)
     parser.add_argument("--objects", default="", help="comma-separated subset of the objects")
@@ -485,20 +579,21 @@ def main(argv: list[str] | None = None) -> None:
         if scenario not in args.sections:
             continue
         for name in chosen:
-            for run in range(args.runs):
+            for run in range(args.first_run, args.first_run + args.runs):
                 records.append(run_case(name, shapes[name], scenario, run, args))
     report = {
         "benchmark": "shape_recovery",
         "machine": machine_info(),
         "seed": args.seed,
         "runs_per_object": args.runs,
+        "first_run": args.first_run,
         "normals": args.normals,
         "summary": summarise(records),
         "records": records,
     }
     if "speed" in args.sections:
         report["speed"] = speed(args)
-    emit_report(report, args.out)
+    emit_report(json_ready(report), args.out)  # a mesh dark at an epoch fits at ∞ mag
 
 
 if __name__ == "__main__":

@@ -59,9 +59,13 @@ def test_a_known_material_fit_is_scored_and_summarised(arcs):
     summary = shape_recovery.summarise([record])
     assert summary["geo_tumbling/known"]["runs"] == 1
     assert summary["geo_tumbling/fitted"]["failed"] == 1
+    assert scored["heldout_ratio_egi"] == pytest.approx(scored["heldout_ratio"], rel=0.5)
+    record |= shape_recovery.identifiability(shape, [fitted_on], held_out)
+    split = shape_recovery.summarise([record])["geo_tumbling/known"]
+    assert split["phase_inside_runs"] + split["phase_outside_runs"] == 1
 
 
-def test_frame_alignment_recovers_a_constant_turn_and_its_mirror():
+def test_frame_alignment_recovers_a_constant_turn():
     from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
 
     rng = np.random.default_rng(2)
@@ -71,9 +75,35 @@ def test_frame_alignment_recovers_a_constant_turn_and_its_mirror():
     found = shape_recovery.frame_alignment(truth, fitted)
     assert np.allclose(found, turn, atol=1e-9)
     assert np.max(shape_recovery.aligned_errors(truth, fitted, found)) < 1e-5
-    mirror = shape_recovery.frame_alignment(truth, fitted, proper=False)
-    assert np.linalg.det(mirror) == pytest.approx(-1.0)
-    assert np.min(shape_recovery.aligned_errors(truth, fitted, mirror)) > 1.0
+
+
+def test_the_mirror_alignment_undoes_the_mirror_hypothesis(arcs):
+    from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
+    from lightcurve.analysis.egi.joint import mirror_turns
+
+    _, fitted_on, _ = arcs
+    truth = truth_attitudes(fitted_on)
+    (half,) = mirror_turns([fitted_on])
+    turn = attitude_matrix(random_quaternion((), np.random.default_rng(8)))
+    # fitted attitudes of the mirror hypothesis in a turned body frame: A = Rᵀ A_true R_m
+    fitted = quaternion_from_matrix(turn.T @ attitude_matrix(truth) @ half)
+    errors, mapping, label = shape_recovery.mirror_aligned(truth, [fitted], [fitted_on])
+    assert label == "mirror" and np.max(errors) < 1e-5
+    assert np.allclose(mapping, -turn, atol=1e-9)
+    direct = quaternion_from_matrix(turn.T @ attitude_matrix(truth))
+    errors, mapping, label = shape_recovery.mirror_aligned(truth, [direct], [fitted_on])
+    assert label == "direct" and np.allclose(mapping, turn, atol=1e-9)
+
+
+def test_identifiability_of_a_held_out_arc(arcs):
+    shape, fitted_on, held_out = arcs
+    found = shape_recovery.identifiability(shape, [fitted_on], held_out)
+    assert 0.0 <= found["heldout_unseen_flux_share"] <= 1.0
+    assert found["heldout_phase_outside_deg"] >= 0.0
+    # the held-out arc itself: every facet it shows was seen, at phase angles inside
+    itself = shape_recovery.identifiability(shape, [held_out], held_out)
+    assert itself["heldout_unseen_flux_share"] == 0.0
+    assert itself["heldout_phase_outside_deg"] == 0.0
 
 
 def test_a_leo_pass_sweeps_a_wider_phase_range_than_a_geo_arc():

@@ -5,10 +5,12 @@ Without --attitude (joint mode, tumbling objects): shape and attitude together, 
 from an ellipsoid (or --start NAME, a library shape): each round inverts the attitude on the
 current shape, refines each file's torque-free state and inertia ratios against the best
 EGI, and fits the EGI on the refined and on the inversion's own attitudes, keeping the
-better; the rounds stop when χ² falls by less than 1 % (at most --rounds). The joint mode
-needs the material (--brdf KIND --param …); shape.obj and the attitudes
-(DIR/attitudes.csv) are then in the principal frame of the fitted inertia, defined up to
-the shape's symmetries and a mirror image (docs/shape.md).
+better — for the inverted state and for its mirror (the half turn about the normal of the
+Sun–observer plane, with the mirror-image shape: one arc hardly tells them apart), picked
+by χ² and flagged in summary.json (joint.ambiguous) when they tie; the rounds stop when χ²
+falls by less than 1 % (at most --rounds). The joint mode needs the material (--brdf KIND
+--param …); shape.obj and the attitudes (DIR/attitudes.csv) are then in the principal frame
+of the fitted inertia, defined up to the shape's symmetries and the mirror (docs/shape.md).
 
 With the attitude known at every epoch (--attitude truth: the files' truth columns q1..q4;
 --attitude RESULT_DIR: the per-epoch estimates of a `lightcurve invert` result folder, one
@@ -152,6 +154,8 @@ def _attitude_columns(epochs, attitudes) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
+
     import numpy as np
 
     from lightcurve import io
@@ -224,6 +228,8 @@ def run(args: argparse.Namespace) -> int:
             "best_round": joint.best_round,
             "inertia_ratios": joint.inertia_ratios,
             "start": args.start or "ellipsoid",
+            "hypotheses": [vars(h) for h in joint.hypotheses],
+            "ambiguous": joint.ambiguous,
         }
         atomic_write_csv(_attitude_columns(epochs, joint.attitudes), args.out / "attitudes.csv")
     atomic_write_json(args.out / "summary.json", json_ready(summary))
@@ -248,6 +254,13 @@ def run(args: argparse.Namespace) -> int:
         args.out / "fit.csv",
     )
     plot_egi_fit(epochs, fit, args.out / "fit.png", [Path(p).name for p in args.files])
+    if joint is not None and joint.ambiguous:
+        chi2 = ", ".join(f"{h.label} {h.chi2:.1f}" for h in joint.hypotheses)
+        print(
+            f"lightcurve shape: warning: the attitude and its mirror fit alike (χ² {chi2}): "
+            "the attitude, and the shape's handedness, are not determined by these data",
+            file=sys.stderr,
+        )
     if not args.quiet:
         params = " ".join(f"--param {k}={v:.6g}" for k, v in fit.material.params.items())
         print(

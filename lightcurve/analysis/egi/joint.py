@@ -23,13 +23,24 @@ Conference; Little 1983 for the EGI):
    and on the estimator's own attitudes; the lower χ² is kept (the refinement's coarse grid
    can bias the state it finds), and its Minkowski solid becomes the next round's shape.
 
-Convergence rule: the rounds stop when the EGI's χ² fails to fall by more than
+**Two hypotheses per round: the state and its mirror.** Over an arc whose Sun and observer
+directions stay in one inertial plane (normal ``m``), the attitudes ``A(t) R_m`` with
+``R_m = 2 m mᵀ − I`` (a half turn about ``m``) turn the body-frame Sun and observer
+directions into their opposites, and the point-reflected (mirror-image) shape then gives the
+same light curve (the flux depends only on ``n·L``, ``n·V`` and ``L·V``): a one-arc
+ambiguity that only the slow turn of that plane over the arc (a few degrees on a 40-minute
+geostationary arc) breaks. The body rates are the same. Steps 2 and 3 run for both the
+estimator's state and its mirror (:func:`mirror_turns`); the hypotheses are told apart by χ²
+at the end, and reported as tied (:attr:`JointFit.ambiguous`) when the second is within
+:data:`TIE_DELTA_CHI2` (in units of the best one's reduced χ²).
+
+Convergence rule: the rounds stop when the best hypothesis's χ² fails to fall by more than
 :data:`CHI2_TOLERANCE` (relative) below the best round's, or after ``rounds``; the round with
 the lowest χ² is returned.
 
 The frame of the result is the principal frame of the fitted inertia; the attitude is
 defined only up to what the light curve can tell apart: the symmetries of the recovered
-shape, and a mirror image of shape and attitude together (docs/shape.md, "Joint mode").
+shape, and the mirror above (docs/shape.md, "Joint mode").
 """
 
 from __future__ import annotations
@@ -37,7 +48,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -57,10 +68,12 @@ from lightcurve.io.observations import Observations
 from shapes import FacetModel, Material, primitives
 
 __all__ = [
+    "Hypothesis",
     "JointFit",
     "JointRound",
     "StateEstimator",
     "fit_joint",
+    "mirror_turns",
     "principal_axes",
     "principal_start",
     "refine_states",
@@ -91,6 +104,33 @@ REFINE_STEPS = 40
 #: Typical scales of the refined parameters: rotation (rad), rates (rad/s), log ratios.
 _SCALES = (0.05, 0.05, 0.05, 1e-3, 1e-3, 1e-3)
 _RATIO_SCALE = 0.05
+#: Hypotheses whose χ² exceeds the best one's by less than this many reduced χ² are tied:
+#: the light curve does not tell them apart (Δχ² = 9: three standard deviations of one
+#: parameter).
+TIE_DELTA_CHI2 = 9.0
+#: The hypotheses of each round: the estimator's state and its mirror.
+HYPOTHESES = ("direct", "mirror")
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """The best fit of one hypothesis in a round (over its refined and estimated attitudes).
+
+    Attributes
+    ----------
+    label : str
+        ``"direct"`` (the estimator's state) or ``"mirror"`` (:func:`mirror_turns`).
+    chi2 : float
+        χ² of its best EGI.
+    residual_rms_mag : float
+    round : int
+        Round of that fit.
+    """
+
+    label: str
+    chi2: float
+    residual_rms_mag: float
+    round: int
 
 
 @dataclass(frozen=True)
@@ -100,9 +140,11 @@ class JointRound:
     Attributes
     ----------
     chi2 : float
-        χ² of the round's EGI on its refined attitudes.
+        χ² of the round's best EGI (over hypotheses and the refined or estimated attitudes).
     residual_rms_mag : float
         rms of its magnitude residuals.
+    hypothesis : str
+        The hypothesis of that EGI (:data:`HYPOTHESES`).
     inversion_rms_mag : float
         rms residual of the attitude inversion on the round's starting shape (mean over
         files).
@@ -112,6 +154,7 @@ class JointRound:
 
     chi2: float
     residual_rms_mag: float
+    hypothesis: str
     inversion_rms_mag: float
     seconds: float
 
@@ -133,6 +176,10 @@ class JointFit:
     rounds : list of JointRound
     best_round : int
         Index of the returned round.
+    hypotheses : list of Hypothesis
+        The best fit of each hypothesis in the returned round, lowest χ² first (the
+        returned one). The hypotheses are relative to each round's estimated state: the
+        mirror of one round is the state of the next when the mirror won.
     """
 
     fit: EGIFit
@@ -141,6 +188,18 @@ class JointFit:
     inertia_ratios: np.ndarray
     rounds: list[JointRound]
     best_round: int
+    hypotheses: list[Hypothesis]
+
+    @property
+    def ambiguous(self) -> bool:
+        """True when another hypothesis's χ² is within :data:`TIE_DELTA_CHI2` reduced χ²
+        of the returned one's: the light curve does not choose between them."""
+        if len(self.hypotheses) < 2:
+            return False
+        best, second = self.hypotheses[0].chi2, self.hypotheses[1].chi2
+        free = int(np.count_nonzero(self.fit.areas))
+        reduced = max(best / max(len(self.epochs) - free, 1), 1.0)
+        return (second - best) / reduced < TIE_DELTA_CHI2
 
 
 def start_shape(material: brdf.BRDF, name: str | None = None) -> FacetModel:
@@ -191,6 +250,42 @@ def principal_axes(shape: FacetModel) -> np.ndarray:
     right-handed, in increasing order of the moments."""
     axes = np.linalg.eigh(shape.inertia)[1]
     return axes * np.sign(np.linalg.det(axes))
+
+
+def mirror_turns(observations: Sequence[Observations]) -> list[np.ndarray]:
+    """Each file's half turn ``R_m = 2 m mᵀ − I`` (3, 3) about the normal ``m`` of the
+    inertial plane nearest its Sun and observer directions (the right singular vector of the
+    smallest singular value of the stacked unit vectors): ``A(t) R_m`` is the mirror
+    hypothesis of attitudes ``A(t)`` (module docstring)."""
+    turns = []
+    for obs in observations:
+        directions = np.vstack(
+            [
+                obs.sun_vectors / np.linalg.norm(obs.sun_vectors, axis=1, keepdims=True),
+                obs.observer_vectors / np.linalg.norm(obs.observer_vectors, axis=1, keepdims=True),
+            ]
+        )
+        normal = np.linalg.svd(directions, full_matrices=False)[2][-1]
+        turns.append(2.0 * np.outer(normal, normal) - np.eye(3))
+    return turns
+
+
+def _mirrored(
+    states: list[tuple[np.ndarray, np.ndarray]],
+    estimated: list[np.ndarray],
+    turns: list[np.ndarray],
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[np.ndarray]]:
+    """The mirror hypothesis ``A R_m`` of first states and per-epoch attitudes (rates
+    unchanged)."""
+    mirrored_states = [
+        (quaternion_from_matrix(attitude_matrix(first) @ turn), omega)
+        for (first, omega), turn in zip(states, turns, strict=True)
+    ]
+    mirrored = [
+        quaternion_from_matrix(attitude_matrix(q) @ turn)
+        for q, turn in zip(estimated, turns, strict=True)
+    ]
+    return mirrored_states, mirrored
 
 
 def refine_states(
@@ -283,28 +378,40 @@ def fit_joint(
         raise ValueError(f"the joint fit needs at least one round, got {rounds}")
     check_epochs(sum(len(obs) for obs in observations), normals)
     shape = start_shape(material, start)
+    turns = mirror_turns(observations)
     history: list[JointRound] = []
     best: JointFit | None = None
     for index in range(rounds):
         began = time.perf_counter()
         states, ratios, inversion_rms, estimated = estimate_states(observations, shape, seed)
-        refined, ratios = refine_states(observations, states, ratios, material)
-        # the EGI on the refined attitudes and on the estimator's own; the lower χ² is kept
-        fits = []
-        for attitudes in (refined, estimated):
-            epochs = FitEpochs.from_observations(list(observations), attitudes)
-            fits.append((fit_egi(epochs, material, normals=normals), epochs, attitudes))
-        fit, epochs, attitudes = min(fits, key=lambda item: item[0].chi2)
+        candidates = []
+        for label in HYPOTHESES:
+            if label == "mirror":
+                states, estimated = _mirrored(states, estimated, turns)
+            refined, fitted_ratios = refine_states(observations, states, ratios, material)
+            # the EGI on the refined attitudes and on the estimator's own; the lower χ² is kept
+            for attitudes in (refined, estimated):
+                epochs = FitEpochs.from_observations(list(observations), attitudes)
+                fit = fit_egi(epochs, material, normals=normals)
+                candidates.append((fit, epochs, attitudes, fitted_ratios, label))
+        leaders: dict[str, Hypothesis] = {}
+        for fit, epochs, _, _, label in candidates:
+            if label not in leaders or fit.chi2 < leaders[label].chi2:
+                leaders[label] = Hypothesis(label, fit.chi2, fit.residual_rms_mag(epochs), index)
+        ranked = sorted(leaders.values(), key=lambda h: h.chi2)
+        fit, epochs, attitudes, ratios, label = min(candidates, key=lambda item: item[0].chi2)
         history.append(
             JointRound(
-                fit.chi2, fit.residual_rms_mag(epochs), inversion_rms, time.perf_counter() - began
+                fit.chi2,
+                fit.residual_rms_mag(epochs),
+                label,
+                inversion_rms,
+                time.perf_counter() - began,
             )
         )
         if best is not None and fit.chi2 >= best.fit.chi2 * (1.0 - CHI2_TOLERANCE):
-            return JointFit(
-                best.fit, best.epochs, best.attitudes, best.inertia_ratios, history, best.best_round
-            )
-        best = JointFit(fit, epochs, attitudes, ratios, history, index)
+            return replace(best, rounds=history)
+        best = JointFit(fit, epochs, attitudes, ratios, history, index, ranked)
         solid = convex_solid(fit.normals, fit.areas)
         body = solid.model.vertices @ solid.principal_axes.T + solid.centroid
         paint = Material(material.name, material.params)

@@ -65,6 +65,35 @@ def test_refinement_lowers_the_profile_chi2_to_the_truths(tumbling):
     assert chi2(after) < 1.2 * chi2(principal)
 
 
+def test_the_mirror_hypothesis_gives_the_mirror_image_the_same_light_curve():
+    # A chiral shape has no symmetry to hide behind: only its mirror image under the
+    # mirrored attitudes reproduces the light curve, to the few degrees the Sun–observer
+    # plane turns over the arc.
+    from lightcurve.photometry.render import Renderer
+    from shapes import FacetModel
+
+    shape = shape_recovery.objects()["chiral"]
+    arc = shape_recovery.observe(shape, "geo_tumbling", np.random.default_rng(12), 0.03)
+    arc = Observations(arc.table.iloc[:400].reset_index(drop=True), arc.meta, arc.source)
+    (half,) = joint.mirror_turns([arc])
+    assert np.allclose(half @ half, np.eye(3)) and np.linalg.det(half) == pytest.approx(1.0)
+    q = truth_attitudes(arc)
+    mirrored = quaternion_from_matrix(attitude_matrix(q) @ half)
+    image = FacetModel(-shape.vertices, shape.faces[:, ::-1], materials=shape_recovery.MATERIAL)
+
+    def magnitudes(model, attitudes):
+        render = Renderer(model, shadows="none")
+        return render.magnitude(attitudes, arc.sun_vectors, arc.observer_vectors)
+
+    truth = magnitudes(shape, q)
+
+    def rms(mag):
+        return float(np.sqrt(np.mean((mag - truth) ** 2)))
+
+    assert rms(magnitudes(image, mirrored)) < 0.05
+    assert rms(magnitudes(image, q)) > 0.5 and rms(magnitudes(shape, mirrored)) > 0.5
+
+
 def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
     arc, principal, omega, ratios = tumbling
     calls = []
@@ -79,6 +108,13 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
     assert calls[0] == "start_ellipsoid" and 2 <= len(fit.rounds) < 4
     assert fit.best_round < len(fit.rounds)
     assert fit.fit.residual_rms_mag(fit.epochs) < 1.3 * 0.03
+    # both hypotheses were fitted; the returned fit is the best of them
+    assert {h.label for h in fit.hypotheses} == set(joint.HYPOTHESES)
+    assert fit.hypotheses[0].chi2 == fit.fit.chi2 <= fit.hypotheses[1].chi2
+    assert fit.rounds[fit.best_round].hypothesis == fit.hypotheses[0].label
+    reduced = max(fit.fit.chi2 / (len(fit.epochs) - np.count_nonzero(fit.fit.areas)), 1.0)
+    tied = (fit.hypotheses[1].chi2 - fit.fit.chi2) / reduced < joint.TIE_DELTA_CHI2
+    assert fit.ambiguous == tied
     with pytest.raises(ValueError, match="at least one round"):
         joint.fit_joint([arc], material, estimate_states=truth_states, rounds=0)
     with pytest.raises(ValueError, match="cannot support"):
@@ -114,6 +150,9 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["method"] == "joint" and summary["attitude_source"] == "joint"
     assert len(summary["joint"]["rounds"]) >= 1
+    labels = [h["label"] for h in summary["joint"]["hypotheses"]]
+    assert sorted(labels) == ["direct", "mirror"]
+    assert isinstance(summary["joint"]["ambiguous"], bool)
     assert (tmp_path / "out" / "attitudes.csv").is_file()
     assert main([str(a) for a in ["shape", path, "--out", tmp_path / "o2", "-q"]]) == 2
     assert "give the material" in capsys.readouterr().err
