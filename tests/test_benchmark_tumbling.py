@@ -28,3 +28,10 @@ def test_drift_nights_grow_the_period():
     assert len(nights) == 30
     first, last = (np.linalg.norm(n.truth[0, 4:]) for n in (nights[0], nights[-1]))
     assert abs(first / last - 1.005) < 1e-9
+
+
+def test_short_pass_whose_period_sits_at_the_range_edge_is_searched():
+    """A 9-min low-orbit pass: the one-period search's period lies at the edge of the default
+    range, and the one-period rival must still be fitted there."""
+    record = run_case(0, 11)
+    assert "error" not in record and "delta_bic" in record

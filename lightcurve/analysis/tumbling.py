@@ -517,9 +517,11 @@ def tumbling_search(
     hessian = _hessian(local, h)
     chi2 = float(local[1, 1])
     best_bic = full.bic(chi2, order)
+    # f0 is the one-period search's own (in the range even where rounding puts it at the
+    # edge); its half only where the range reaches it.
     single_bic = rotator_bic(
         data,
-        [f for f in (f0, f0 / 2) if f >= f_min],
+        [f0, *([f0 / 2] if f0 / 2 >= f_min else [])],
         step,
         trend_degree=trend_degree,
         orders=single_orders,
