@@ -60,9 +60,6 @@ __all__ = [
     "night_index",
 ]
 
-#: Energy bound shared by the weights of the BRDF registry's multi-lobe models.
-_WEIGHT_NAMES = ("rd", "rs", "rb", "rn")
-
 
 @dataclass(frozen=True)
 class Calibration:
@@ -493,12 +490,12 @@ def _materials(model: Shape, free: Sequence[_Free], x: np.ndarray) -> dict[str, 
         params[f.group][f.name] = f.from_search(float(value))
     out = {}
     for group, values in params.items():
-        weights = [k for k in _WEIGHT_NAMES if k in values]
+        material = model.materials[group]
+        weights = [k for k in brdf.describe(material.brdf).weights if k in values]
         total = sum(values[k] for k in weights)
-        if len(weights) > 1 and total > 1.0:
+        if total > 1.0:
             for k in weights:
                 values[k] *= (1.0 - 1e-9) / total
-        material = model.materials[group]
         out[group] = Material(material.brdf, values, name=material.name)
     return out
 
