@@ -45,7 +45,8 @@ Each run draws the object's state and the noise (0.02–0.05 mag, uniform) from
 start state for the tumbling case) is the held-out light curve. The shape is fitted by
 :func:`lightcurve.analysis.egi.fit_material` (the CLI default: Ashikhmin–Shirley and Phong
 tried, rd held at 0.2) and, as a check of the fit alone, with the true material given
-(``known``). Printed per run and summarised per scenario:
+(``known``), both with the smoothness weight ``lightcurve shape`` sets by default
+(:func:`~lightcurve.analysis.egi.fit.default_smoothing`; ``--smoothing`` overrides it). Printed per run and summarised per scenario:
 
 * ``heldout_ratio``: rms of (held-out measured − predicted) over the noise rms, the
   prediction rendered by the project's renderer from the reconstructed mesh with the
@@ -68,7 +69,7 @@ held-out ratio and normal errors on the first ``geo_tumbling`` runs against the 
 
     python -m benchmarks.shape_recovery [--runs 2] [--first-run 0] [--seed 34]
         [--sections geo_tumbling,...] [--normals 2000] [--materials fitted,known]
-        [--objects box_3x2x1,...] [--out FILE]
+        [--objects box_3x2x1,...] [--smoothing auto] [--out FILE]
 """
 
 from __future__ import annotations
@@ -87,9 +88,16 @@ from benchmarks._timing import best_time
 from benchmarks.mismatch_study import geo_geometry, leo_geometry
 from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
 from lightcurve.analysis.convex.minkowski import equivalent_ellipsoid
-from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_material, normal_grid
+from lightcurve.analysis.egi import (
+    EGIFit,
+    FitEpochs,
+    convex_solid,
+    fit_egi,
+    fit_material,
+    normal_grid,
+)
 from lightcurve.analysis.egi.epochs import truth_attitudes
-from lightcurve.analysis.egi.fit import design_matrix
+from lightcurve.analysis.egi.fit import default_smoothing, design_matrix
 from lightcurve.analysis.egi.joint import mirror_turns
 from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
@@ -370,6 +378,13 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     }
 
 
+def _options(epochs: FitEpochs, args) -> dict[str, Any]:
+    """Grid size and smoothness weight of a known-attitude fit, as ``lightcurve shape``
+    takes them (``--smoothing auto``: :func:`~lightcurve.analysis.egi.fit.default_smoothing`)."""
+    smoothing = default_smoothing(epochs) if args.smoothing == "auto" else args.smoothing
+    return {"normals": args.normals, "smoothing": float(smoothing)}
+
+
 def mode_attitudes(arc: Observations, shape: FacetModel, seed: int) -> np.ndarray:
     """Per-epoch attitudes (E, 4) of ``lightcurve invert --modes`` on a stabilised night,
     the object's own shape the candidate (the best case: the modes' offsets fitted with
@@ -408,16 +423,18 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
     else:
         epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
         fitters = {
-            "fitted": lambda: fit_material(epochs, normals=args.normals),
-            "known": lambda: fit_egi(epochs, _true_material(), normals=args.normals),
+            "fitted": lambda: fit_material(epochs, **_options(epochs, args)),
+            "known": lambda: fit_egi(epochs, _true_material(), **_options(epochs, args)),
         }
         fitters = {label: fitters[label] for label in args.materials}
         if scenario == "geo_night":
-            fitters["modes"] = lambda: fit_egi(
-                FitEpochs.from_observations(arcs, [mode_attitudes(arcs[0], shape, args.seed)]),
-                _true_material(),
-                normals=args.normals,
-            )
+
+            def modes() -> EGIFit:
+                attitudes = [mode_attitudes(arcs[0], shape, args.seed)]
+                found = FitEpochs.from_observations(arcs, attitudes)
+                return fit_egi(found, _true_material(), **_options(found, args))
+
+            fitters["modes"] = modes
     for label, fitter in fitters.items():
         start = time.perf_counter()
         try:
@@ -429,6 +446,7 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
             record[label] = {
                 "fit_s": seconds,
                 "fit_rms_mag": _finite(fit.residual_rms_mag(epochs)),
+                "smoothing": fit.smoothing,
                 **score(shape, fit, held_out, noise_mag, arcs=arcs),
             }
         except (ValueError, RuntimeError) as exc:  # a failed fit is a result
@@ -567,9 +585,16 @@ def main(argv: list[str] | None = None) -> None:
         default="fitted,known",
         help="material modes of the known-attitude scenarios: fitted, known (comma-separated)",
     )
+    parser.add_argument(
+        "--smoothing",
+        default="auto",
+        help="smoothness weight of the known-attitude fits, or 'auto' (lightcurve shape's rule)",
+    )
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     args.materials = [m for m in args.materials.split(",") if m]
+    if args.smoothing != "auto":
+        args.smoothing = float(args.smoothing)
     if not set(args.materials) <= {"fitted", "known"}:
         parser.error(f"--materials: fitted and/or known, got {args.materials}")
     shapes = objects()

@@ -24,6 +24,11 @@ rd held at --albedo, and without --brdf both Ashikhmin–Shirley and Phong (whos
 Lambert's model) are tried and the lower χ² kept; other models alone take their registry
 defaults. The absolute size rests on the albedo, assumed or given.
 
+Smoothing (known attitudes): --smoothing auto (the default) adds a small Tikhonov
+smoothness weight when the body-frame Sun–observer bisectors stay near one plane (a
+stabilised object: the data see its normals along one band, and the fit could otherwise put
+area of any size where it hardly sees), and none otherwise (docs/shape.md).
+
 Writes DIR/shape.obj (metres, principal frame; the rotation from the attitudes' body frame
 in its comments), DIR/summary.json, DIR/egi.csv (normals, areas, 1σ), DIR/fit.csv and
 DIR/fit.png. `lightcurve shapes add NAME DIR/shape.obj --brdf … --param …` takes the shape
@@ -33,6 +38,7 @@ with the material of summary.json.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from lightcurve.commands._args import add_observation_files, add_output_folder, brdf_parameters
@@ -83,7 +89,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--albedo", type=float, default=0.2, help="assumed diffuse albedo rd of a fitted material"
     )
     parser.add_argument(
-        "--smoothing", type=float, default=0.0, help="relative Tikhonov smoothness weight"
+        "--smoothing",
+        type=_smoothing,
+        default="auto",
+        metavar="WEIGHT",
+        help="relative Tikhonov smoothness weight, or 'auto' (default): a small weight when "
+        "the data see the normals along one band (a stabilised object), else none",
     )
     parser.add_argument(
         "--bootstrap", type=int, default=8, help="bootstrap refits for the axis ratios' 1σ"
@@ -91,6 +102,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--seed", type=int, default=0, help="seed of the bootstrap and of the joint mode's search"
     )
+
+
+def _smoothing(text: str) -> str | float:
+    """``--smoothing``: ``auto`` or a finite weight ≥ 0."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"'auto' or a finite number ≥ 0, got {text!r}")
+    return value
 
 
 def _attitudes(observations, source: str):
@@ -120,11 +144,13 @@ def _joint(args: argparse.Namespace, observations):
 def _fit(args: argparse.Namespace, epochs):
     import brdf
     from lightcurve.analysis.egi import fit_egi, fit_material
-    from lightcurve.analysis.egi.fit import FITTED_FAMILIES, LOBES
+    from lightcurve.analysis.egi.fit import FITTED_FAMILIES, LOBES, default_smoothing
 
     if args.param and not args.brdf:
         raise ValueError("--param needs --brdf KIND")
     kind = brdf.describe(args.brdf).name if args.brdf else None
+    if args.smoothing == "auto":
+        args.smoothing = default_smoothing(epochs)
     if args.param or (kind is not None and kind not in LOBES):
         material = brdf.get(kind, **brdf_parameters(args.param))
         fit = fit_egi(epochs, material, normals=args.normals, smoothing=args.smoothing)

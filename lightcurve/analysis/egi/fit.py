@@ -44,6 +44,7 @@ __all__ = [
     "EGIFit",
     "bootstrap_areas",
     "check_epochs",
+    "default_smoothing",
     "design_matrix",
     "egi_residuals",
     "fit_egi",
@@ -65,6 +66,12 @@ POLISH_SHARE = 0.02
 POLISH_STEPS = 20
 #: Weight of the closure rows relative to the mean squared column of the data.
 CLOSURE_WEIGHT = 1e4
+#: Smallest eigenvalue of the body-frame bisectors' scatter below which the data see the
+#: normals along one band only (:func:`default_smoothing`): bisectors within about ±6° of
+#: a plane.
+BAND_SPREAD = 0.01
+#: Relative smoothness weight of a fit whose data see one band of normals.
+BAND_SMOOTHING = 1e-4
 
 
 def min_epochs(normals: int) -> int:
@@ -174,12 +181,12 @@ def fit_egi(
     Raises
     ------
     ValueError
-        Fewer epochs than :func:`min_epochs`, or a negative smoothing.
+        Fewer epochs than :func:`min_epochs`, or a negative or infinite smoothing.
     """
     grid = normal_grid(normals) if np.ndim(normals) == 0 else np.asarray(normals, float)
     check_epochs(len(epochs), len(grid))
-    if not smoothing >= 0.0:
-        raise ValueError(f"smoothing must be ≥ 0, got {smoothing}")
+    if not (math.isfinite(smoothing) and smoothing >= 0.0):
+        raise ValueError(f"smoothing must be finite and ≥ 0, got {smoothing}")
     grid_design = design_matrix(grid, epochs, material)
     areas = _solve(grid_design, grid, epochs, smoothing)
     normals, design = grid, grid_design
@@ -500,6 +507,25 @@ def _lobe_material(name: str, albedo: float, rs: float, value: float) -> brdf.BR
     lobe, _, tied = LOBES[name]
     params = {"rd": albedo, "rs": max(rs, 0.0), lobe: value}
     return brdf.get(name, **params, **dict.fromkeys(tied, value))
+
+
+def default_smoothing(epochs: FitEpochs) -> float:
+    """The smoothness weight the geometry of ``epochs`` needs: :data:`BAND_SMOOTHING` when
+    the data see the normals along one band, else 0.
+
+    The spread is the smallest eigenvalue of ``Σ_e h_e h_eᵀ / E``, ``h`` the unit bisector
+    of the body-frame Sun and observer directions (the normal a face must have to be seen
+    best): near 1/3 for a tumbling object, near 0 for a stabilised one, whose observer
+    stays fixed in its body frame while the Sun sweeps one arc. Non-negativity and closure
+    regularise a fit that sees every direction; on one band they let the fit put area of
+    any size on normals the data hardly see (fits of a 22 m² box to a stabilised night
+    reached 10⁴–10⁶ m²), and the smoothness term keeps it off them (docs/shape.md,
+    "Regularisation").
+    """
+    bisector = epochs.light + epochs.view
+    bisector /= np.maximum(np.linalg.norm(bisector, axis=1, keepdims=True), 1e-12)
+    spread = np.linalg.eigvalsh(bisector.T @ bisector / len(bisector))[0]
+    return BAND_SMOOTHING if spread < BAND_SPREAD else 0.0
 
 
 def check_epochs(count: int, normals: int) -> None:
