@@ -46,7 +46,8 @@ start state for the tumbling case) is the held-out light curve. The shape is fit
 :func:`lightcurve.analysis.egi.fit_material` (the CLI default: Ashikhmin–Shirley and Phong
 tried, rd held at 0.2) and, as a check of the fit alone, with the true material given
 (``known``), both with the smoothness weight ``lightcurve shape`` sets by default
-(:func:`~lightcurve.analysis.egi.fit.default_smoothing`; ``--smoothing`` overrides it). Printed per run and summarised per scenario:
+(:func:`~lightcurve.analysis.egi.fit.default_smoothing`; ``--smoothing`` overrides it).
+Printed per run and summarised per scenario:
 
 * ``heldout_ratio``: rms of (held-out measured − predicted) over the noise rms, the
   prediction rendered by the project's renderer from the reconstructed mesh with the
