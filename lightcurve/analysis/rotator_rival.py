@@ -30,7 +30,7 @@ from scipy.optimize import minimize_scalar
 from lightcurve.analysis.fourier_design import FourierDesign
 from lightcurve.analysis.period import StackedLightCurves, pab_longitude
 
-__all__ = ["geometry_explains_pair", "rotator_bic"]
+__all__ = ["geometry_explains_pair", "rotator_bic", "search_penalty"]
 
 #: Degree of the slow change of the one-period rival's coefficients within a light curve:
 #: its amplitude and shape follow the aspect and phase angle over a night or a pass (the
@@ -133,6 +133,28 @@ def geometry_explains_pair(
     return phase_change > PHASE_CHANGE_DEG and any(
         abs(q * f2 - p * f1) * span_s < resolution_cycles for p, q in HARMONIC_RATIOS
     )
+
+
+def search_penalty(independent_trials: float) -> float:
+    """The ΔBIC a second frequency must add for having been searched: ``2 ln M``.
+
+    The BIC counts a frequency as one parameter (``ln N``), as if its value were known in
+    advance; the largest of M independent periodogram peaks of pure noise grows as ``ln M``
+    in ``Δχ²/2`` (false-alarm probability ``≈ M e^{−Δχ²/2}``: Scargle 1982, ApJ 263, 835;
+    Horne & Baliunas 1986, ApJ 302, 757). The threshold of a searched frequency is
+    therefore raised by ``2 ln M``.
+
+    Parameters
+    ----------
+    independent_trials : float
+        M, the independent trial frequencies: the searched band times the span T.
+
+    Returns
+    -------
+    float
+        ``2 ln M`` (0 for M ≤ 1).
+    """
+    return 2.0 * math.log(max(float(independent_trials), 1.0))
 
 
 def _single_bic(

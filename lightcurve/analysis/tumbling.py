@@ -41,7 +41,9 @@ The search (:func:`tumbling_search`):
    points, where the Hessian ``H`` of χ² (central differences) gives the covariance
    ``2 χ²_ν H⁻¹`` of (f1, f2);
 4. the verdict: **tumbling** when the two-period fit beats the one-period rival by
-   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are resolved
+   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC + 2 ln M`` (M the independent trial
+   second frequencies, the band times T:
+   :func:`~lightcurve.analysis.rotator_rival.search_penalty`) and the two frequencies are resolved
    (``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T`` for ``(p, q)`` in ``RESOLVED_RATIOS``)
    and not commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
    ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one),
@@ -80,7 +82,7 @@ from lightcurve.analysis.period import (
     StackedLightCurves,
     period_search,
 )
-from lightcurve.analysis.rotator_rival import geometry_explains_pair, rotator_bic
+from lightcurve.analysis.rotator_rival import geometry_explains_pair, rotator_bic, search_penalty
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -565,7 +567,9 @@ def tumbling_search(
         n_points=n,
         delta_bic=delta_bic,
         tumbling=bool(
-            delta_bic > SIGNIFICANT_DELTA_BIC
+            # The second frequency was searched over len(second) / oversample independent
+            # trials.
+            delta_bic > SIGNIFICANT_DELTA_BIC + search_penalty(len(second) / oversample)
             and _admissible(pair, span)
             and not geometry_explains_pair(
                 pair, span, data.sun, data.observer, resolution_cycles=MIN_SEPARATION_CYCLES
