@@ -34,8 +34,8 @@ Sections:
     error and sign of the recovered ``Ṗ`` (sidereal nightly periods about the known spin
     axis, :func:`spin_pole`, with the PAB approximation's systematic of
     :func:`lightcurve.analysis.drift.night_periods`, common to the nights), and the fraction
-    of constant runs with ``|Ṗ| < 2σ``. The attitude at each night's start is the same (the rotation phase is not
-    carried across nights: the nightly fits do not use it).
+    of constant runs with ``|Ṗ| < 2σ``. The attitude at each night's start is the same
+    (the rotation phase is not carried across nights: the nightly fits do not use it).
 
     python -m benchmarks.tumbling_periods [--runs 50] [--seed 0] [--sections …]
 """
