@@ -47,9 +47,9 @@ The search (:func:`tumbling_search`):
    (``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T`` for ``(p, q)`` in ``RESOLVED_RATIOS``)
    and not commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
    ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one),
-   and, where the phase angle changes by more than 30° over the arc, not within
-   ``MIN_SEPARATION_CYCLES / T`` of a ratio p:q ≤ 3 (a changing one-period light curve,
-   :func:`~lightcurve.analysis.rotator_rival.geometry_explains_pair`).
+   and, where the phase angle or the bisector moves by more than 30° over the arc, not
+   within ``MIN_SEPARATION_CYCLES / T`` of a ratio p:q ≤ 4 (a changing one-period light
+   curve, :func:`~lightcurve.analysis.rotator_rival.geometry_explains_pair`).
 
 Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
 :func:`euler_reading`). Two generators of the same lattice of combination frequencies are

@@ -8,7 +8,8 @@ import pytest
 
 from benchmarks.tumbling_periods import run_case
 from lightcurve.analysis.rotator_rival import (
-    PHASE_CHANGE_DEG,
+    GEOMETRY_CHANGE_DEG,
+    geometry_change_deg,
     geometry_explains_pair,
     search_penalty,
 )
@@ -22,17 +23,36 @@ def _turning_geometry(phase_change_deg: float, n: int = 50) -> tuple[np.ndarray,
     return sun, observer
 
 
-def test_a_near_harmonic_pair_is_explained_only_where_the_phase_angle_changes():
+def _carried_geometry(turn_deg: float, n: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    """Sun and observer 40° apart, both turning about z by ``turn_deg``: a constant phase
+    angle, the bisector turning by ``turn_deg``."""
+    angle = np.radians(np.linspace(0.0, turn_deg, n))
+    sun = 1.5e8 * np.column_stack([np.cos(angle), np.sin(angle), np.zeros(n)])
+    observer = 4e4 * np.column_stack([np.cos(angle + 0.7), np.sin(angle + 0.7), np.zeros(n)])
+    return sun, observer
+
+
+def test_geometry_change_is_the_phase_angle_range_or_the_bisector_turn():
+    assert geometry_change_deg(*_turning_geometry(60.0)) == pytest.approx(60.0)
+    assert geometry_change_deg(*_carried_geometry(45.0)) == pytest.approx(45.0)
+    assert geometry_change_deg(*_carried_geometry(0.0)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_near_harmonic_pair_is_explained_only_where_the_geometry_changes():
     span = 600.0
     f2 = 1 / 180.0
     near = (3 * f2 + 0.6 / span, f2)  # 0.6 cycles per span from 3:1
-    far = (3.5 * f2, f2)  # 1.67 cycles from 3:1, farther from the other ratios
-    fast, slow = _turning_geometry(100.0), _turning_geometry(PHASE_CHANGE_DEG / 3)
+    far = (3.5 * f2, f2)  # 1.67 cycles from 3:1 and 4:1, farther from the other ratios
+    fast, slow = _turning_geometry(100.0), _turning_geometry(GEOMETRY_CHANGE_DEG / 3)
     assert geometry_explains_pair(near, span, *fast, resolution_cycles=1.5)
     assert not geometry_explains_pair(near, span, *slow, resolution_cycles=1.5)
     assert not geometry_explains_pair(far, span, *fast, resolution_cycles=1.5)
-    # 2:3 counts as well, and the order of the two frequencies does not matter.
+    # 2:3 and 4:1 count as well, the order of the two frequencies does not matter, and a
+    # turning bisector at a constant phase angle moves the geometry too.
     assert geometry_explains_pair((f2, 1.5 * f2 + 0.2 / span), span, *fast, resolution_cycles=1.5)
+    assert geometry_explains_pair((f2, 4 * f2 - 0.5 / span), span, *fast, resolution_cycles=1.5)
+    turning = _carried_geometry(2 * GEOMETRY_CHANGE_DEG)
+    assert geometry_explains_pair(near, span, *turning, resolution_cycles=1.5)
 
 
 def test_search_penalty_holds_the_false_alarm_rate_of_white_noise():
