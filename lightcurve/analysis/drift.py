@@ -8,22 +8,26 @@ the weighted least-squares polynomial ::
     P(t) = P_0 + Ṗ (t − t̄) [+ ½ P̈ (t − t̄)²]
 
 with ``t̄`` the weighted mean epoch (where P_0 and Ṗ are uncorrelated), each night weighted
-by its fit's ``1/σ_n²``. The covariance is ``(AᵀWA)⁻¹`` scaled by the reduced χ² when that
-exceeds 1 (nights scattering more than their errors say: the Birge ratio, Birge 1932,
-Phys. Rev. 40, 207), plus the nights' common systematic (:func:`fit_drift`). This is the
-spin-down monitoring of e.g. Hall et al. (2007, AMOS) on IMAGE: a series of nightly periods
-and a trend through them; no cycle count across the gaps between nights is needed, so daily
-aliases of a coherent multi-night fit cannot corrupt it.
+by ``1/(σ_n² + s_n²)``, ``s_n`` its systematic (below). The covariance is ``(AᵀWA)⁻¹``
+scaled by the reduced χ² when that exceeds 1 (nights scattering more than their errors
+say: the Birge ratio, Birge 1932, Phys. Rev. 40, 207), plus the nights' common systematic
+(:func:`fit_drift`). This is the spin-down monitoring of e.g. Hall et al. (2007, AMOS) on
+IMAGE: a series of nightly periods and a trend through them; no cycle count across the
+gaps between nights is needed, so daily aliases of a coherent multi-night fit cannot
+corrupt it.
 
 The sidereal periods of a known pole (``night_periods(..., pole=...)``) carry the error of
-the phase-angle-bisector (PAB) approximation. It follows the geometry, which moves little
-from one night to the next, so it is common to neighbouring nights: a smooth curve through
-the season, not a scatter about the line (it leaves the reduced χ² below 1 and still tilts
-the line). It is therefore not a night's own error. ``fit_drift`` models it as the
-polynomial ``S Σ_k z_k ((t − t̄)/T)^k`` of the fit's degree, ``z_k ~ N(0, 1)``, over the
-span T of the nights, S the weighted mean ``systematic_h`` (the line cannot tell such a curve from a
-drift, so it adds ``(S k!/T^k)²`` to the variance of the k-th coefficient: the systematic
-may change by its own size over the nights).
+the phase-angle-bisector (PAB) approximation, of the size ``s_n`` of the night's
+correction. Where the correction changes fast from night to night (a pole near the
+bisector's path) it is a night's own error, and the weights keep such nights from pulling
+the line. Mostly, though, it follows the geometry, which moves little from one night to
+the next: a smooth curve through the season, common to neighbouring nights, which no
+weighting averages down (it leaves the reduced χ² below 1 and still tilts the line).
+``fit_drift`` therefore also counts it as the polynomial ``S Σ_k z_k ((t − t̄)/T)^k`` of
+the fit's degree, ``z_k ~ N(0, 1)``, over the span T of the nights, S the weighted mean
+``s_n``. The line cannot tell such a curve from a drift, so it adds ``(S k!/T^k)²`` to the
+variance of the k-th coefficient: the systematic may change by its own size over the
+nights.
 """
 
 from __future__ import annotations
@@ -63,8 +67,8 @@ class NightPeriod:
 
     @property
     def total_sigma_h(self) -> float:
-        """The fit's and the geometry's 1σ in quadrature (h): how far the night's period
-        may lie from the truth (its error bar in plots)."""
+        """The fit's and the geometry's 1σ in quadrature (h): the night's weight in the drift
+        fit and its error bar in plots."""
         return math.hypot(self.sigma_h, self.systematic_h)
 
 
@@ -121,9 +125,10 @@ class DriftResult:
 def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> DriftResult:
     """Weighted polynomial fit of per-night periods (module docstring).
 
-    The nights are weighted by their fits' σ. The systematic ``S``, the weighted mean of the
-    nights' ``systematic_h``, is common to them: it adds ``(S k!/T^k)²`` to the variance of
-    the k-th coefficient (``P_0``, ``Ṗ``, ``P̈``), T the span of the nights.
+    The nights are weighted by their fits' and systematic σ in quadrature
+    (:attr:`NightPeriod.total_sigma_h`). The systematic is also common to the nights: ``S``,
+    the weighted mean of their ``systematic_h``, adds ``(S k!/T^k)²`` to the variance of the
+    k-th coefficient (``P_0``, ``Ṗ``, ``P̈``), T the span of the nights.
 
     Parameters
     ----------
@@ -157,7 +162,7 @@ def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> Drif
             )
     days = np.array([n.mjd for n in nights])
     period_s = np.array([n.period_h for n in nights]) * 3600.0
-    sigma_s = np.array([n.sigma_h for n in nights]) * 3600.0
+    sigma_s = np.array([n.total_sigma_h for n in nights]) * 3600.0
     w = 1.0 / sigma_s**2
     reference = float(np.sum(w * days) / np.sum(w))
     x = days - reference
