@@ -20,7 +20,8 @@ Sections:
     one-period search, counted right when its period is within 1 % of ``P_φ`` or ``P_ψ``.
 ``rotators``
     Principal-axis rotators (the same eggs, rates along the axis of largest or smallest
-    moment, the same geometries and noise): the fraction called not tumbling.
+    moment, the same geometries and noise; run ``i`` draws from ``default_rng([seed + 1000,
+    i])``): the fraction called not tumbling, and each run's ΔBIC and fitted pair.
 ``runtime``
     A 10⁴-point geostationary night (8 h) of a tumbler: the wall time of the two-period
     search (median of ``--repeats``) against the one-period search on the same data and
@@ -31,10 +32,10 @@ Sections:
     0.03 mag) from a geostationary slot, its period growing linearly by 0.5 % over the 30
     nights from ``DRIFT_PERIOD_H``, and the same rotator at a constant period: the relative
     error and sign of the recovered ``Ṗ`` (sidereal nightly periods about the known spin
-    axis, :func:`spin_pole`, each with the PAB approximation's systematic error of
-    :func:`lightcurve.analysis.drift.night_periods`), and the fraction of constant runs with
-    ``|Ṗ| < 2σ``. The attitude at each night's start is the same (the rotation phase is not
-    carried across nights: the nightly fits do not use it).
+    axis, :func:`spin_pole`, with the PAB approximation's systematic of
+    :func:`lightcurve.analysis.drift.night_periods`, common to the nights), and the fraction
+    of constant runs with ``|Ṗ| < 2σ``. The attitude at each night's start is the same
+    (the rotation phase is not carried across nights: the nightly fits do not use it).
 
     python -m benchmarks.tumbling_periods [--runs 50] [--seed 0] [--sections …]
 """
@@ -257,8 +258,20 @@ def rotators(seed: int, runs: int) -> dict[str, Any]:
     return {
         "runs": runs,
         "called_not_tumbling": float(np.mean([not r["tumbling"] for r in records])),
+        "search_errors": sum("error" in r for r in records),
         "records": [
-            {k: r[k] for k in ("run", "scenario", "points", "arc_s", "tumbling", "delta_bic")}
+            {
+                k: r.get(k)
+                for k in (
+                    "run",
+                    "scenario",
+                    "points",
+                    "arc_s",
+                    "tumbling",
+                    "delta_bic",
+                    "periods_s",
+                )
+            }
             for r in records
         ],
     }
@@ -361,8 +374,8 @@ def drift(seed: int, runs: int) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=50, help="tumbler runs")
-    parser.add_argument("--rotator-runs", type=int, default=20, help="principal-axis runs")
-    parser.add_argument("--drift-runs", type=int, default=20, help="drift runs (each way)")
+    parser.add_argument("--rotator-runs", type=int, default=50, help="principal-axis runs")
+    parser.add_argument("--drift-runs", type=int, default=50, help="drift runs (each way)")
     parser.add_argument("--repeats", type=int, default=3, help="runtime repeats")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="also write the JSON report here")

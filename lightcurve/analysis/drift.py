@@ -7,11 +7,27 @@ the weighted least-squares polynomial ::
 
     P(t) = P_0 + Ṗ (t − t̄) [+ ½ P̈ (t − t̄)²]
 
-with ``t̄`` the weighted mean epoch (where P_0 and Ṗ are uncorrelated); the covariance is
-``(AᵀWA)⁻¹`` scaled by the reduced χ² when that exceeds 1 (nights scattering more than their
-errors say). This is the spin-down monitoring of e.g. Hall et al. (2007, AMOS) on IMAGE: a
-series of nightly periods and a trend through them; no cycle count across the gaps between
-nights is needed, so daily aliases of a coherent multi-night fit cannot corrupt it.
+with ``t̄`` the weighted mean epoch (where P_0 and Ṗ are uncorrelated), each night weighted
+by ``1/(σ_n² + s_n²)``, ``s_n`` its systematic (below). The covariance is ``(AᵀWA)⁻¹``
+scaled by the reduced χ² when that exceeds 1 (nights scattering more than their errors
+say: the Birge ratio, Birge 1932, Phys. Rev. 40, 207), plus the nights' common systematic
+(:func:`fit_drift`). This is the spin-down monitoring of e.g. Hall et al. (2007, AMOS) on
+IMAGE: a series of nightly periods and a trend through them; no cycle count across the
+gaps between nights is needed, so daily aliases of a coherent multi-night fit cannot
+corrupt it.
+
+The sidereal periods of a known pole (``night_periods(..., pole=...)``) carry the error of
+the phase-angle-bisector (PAB) approximation, of the size ``s_n`` of the night's
+correction. Where the correction changes fast from night to night (a pole near the
+bisector's path) it is a night's own error, and the weights keep such nights from pulling
+the line. Mostly, though, it follows the geometry, which moves little from one night to
+the next: a smooth curve through the season, common to neighbouring nights, which no
+weighting averages down (it leaves the reduced χ² below 1 and still tilts the line).
+``fit_drift`` therefore also counts it as the polynomial ``S Σ_k z_k ((t − t̄)/T)^k`` of
+the fit's degree, ``z_k ~ N(0, 1)``, over the span T of the nights, S the weighted mean
+``s_n``. The line cannot tell such a curve from a drift, so it adds ``(S k!/T^k)²`` to the
+variance of the k-th coefficient: the systematic may change by its own size over the
+nights.
 """
 
 from __future__ import annotations
@@ -29,17 +45,18 @@ from lightcurve.io.observations import Observations
 __all__ = ["DriftResult", "NightPeriod", "fit_drift", "night_periods", "period_drift"]
 
 SECONDS_PER_DAY = 86400.0
-#: 1σ of a night's sidereal period from the phase-angle-bisector approximation, as a
-#: fraction of the night's synodic–sidereal correction ``P² |Λ̇| / 2π``.
+#: 1σ of the nights' sidereal periods from the phase-angle-bisector approximation, as a
+#: fraction of each night's synodic–sidereal correction ``P² |Λ̇| / 2π``: a systematic
+#: common to the nights (module docstring).
 PAB_SYSTEMATIC = 1.0
 
 
 @dataclass(frozen=True)
 class NightPeriod:
     """The period of one file: ``mjd`` (mean epoch), ``period_h`` and ``sigma_h`` (1σ of the
-    fit), ``systematic_h`` (1σ of the geometry's effect, :func:`night_periods`; 0 when not
-    estimated) and ``series`` (``"period"``, or ``"shorter"``/``"longer"`` of a two-period
-    fit)."""
+    fit), ``systematic_h`` (1σ of the geometry's effect, :func:`night_periods`, common to
+    neighbouring nights; 0 when not estimated) and ``series`` (``"period"``, or
+    ``"shorter"``/``"longer"`` of a two-period fit)."""
 
     file: str
     series: str
@@ -50,7 +67,8 @@ class NightPeriod:
 
     @property
     def total_sigma_h(self) -> float:
-        """The fit's and the geometry's 1σ in quadrature (h)."""
+        """The fit's and the geometry's 1σ in quadrature (h): the night's weight in the drift
+        fit and its error bar in plots."""
         return math.hypot(self.sigma_h, self.systematic_h)
 
 
@@ -107,6 +125,11 @@ class DriftResult:
 def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> DriftResult:
     """Weighted polynomial fit of per-night periods (module docstring).
 
+    The nights are weighted by their fits' and systematic σ in quadrature
+    (:attr:`NightPeriod.total_sigma_h`). The systematic is also common to the nights: ``S``,
+    the weighted mean of their ``systematic_h``, adds ``(S k!/T^k)²`` to the variance of the
+    k-th coefficient (``P_0``, ``Ṗ``, ``P̈``), T the span of the nights.
+
     Parameters
     ----------
     nights : sequence of NightPeriod
@@ -143,7 +166,8 @@ def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> Drif
     w = 1.0 / sigma_s**2
     reference = float(np.sum(w * days) / np.sum(w))
     x = days - reference
-    if np.ptp(x) <= 0:
+    span = float(np.ptp(x))
+    if span <= 0:
         raise ValueError("all files have the same epoch: a drift needs nights apart in time")
     design = np.column_stack([x**p / math.factorial(p) for p in range(degree + 1)])
     normal = design.T @ (design * w[:, None])
@@ -155,7 +179,9 @@ def fit_drift(nights: Sequence[NightPeriod], *, quadratic: bool = False) -> Drif
     )
     if dof > 0 and reduced > 1.0:
         covariance = covariance * reduced
-    sigma = np.sqrt(np.diag(covariance))
+    systematic_s = float(np.sum(w * [n.systematic_h for n in nights]) / np.sum(w)) * 3600.0
+    common = [systematic_s * math.factorial(k) / span**k for k in range(degree + 1)]
+    sigma = np.sqrt(np.diag(covariance) + np.square(common))
     return DriftResult(
         series=nights[0].series,
         reference_mjd=reference,

@@ -12,6 +12,11 @@ as the geometry moves (Harris et al. 1984, Icarus 57, 251; Pravec et al. 2005, I
 108, sec. 2). The poles are ``ROTATOR_POLES`` points of a Fibonacci lattice, screened at
 order ``ROTATOR_SCREEN_ORDER``; the ``ROTATOR_CANDIDATES`` best are fitted at every order,
 the pole counting two parameters.
+
+Where the geometry changes fast (a low-orbit pass), a rotator's light curve changes its
+amplitude and shape within the arc in ways neither form follows, and a pair of
+frequencies near a low-order ratio then fits it better (:func:`geometry_explains_pair`,
+the verdict's last test).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from scipy.optimize import minimize_scalar
 from lightcurve.analysis.fourier_design import FourierDesign
 from lightcurve.analysis.period import StackedLightCurves, pab_longitude
 
-__all__ = ["rotator_bic"]
+__all__ = ["geometry_change_deg", "geometry_explains_pair", "rotator_bic", "search_penalty"]
 
 #: Degree of the slow change of the one-period rival's coefficients within a light curve:
 #: its amplitude and shape follow the aspect and phase angle over a night or a pass (the
@@ -38,6 +43,15 @@ ROTATOR_SCREEN_ORDER = 4
 ROTATOR_CANDIDATES = 2
 #: Harmonic orders of the one-period rival judged on all points (besides ``orders``).
 SINGLE_HARMONICS = (2, 3, 4, 6, 8, 12, 16)
+#: Change of the geometry (deg) over an arc above which a rotator's light curve changes
+#: appreciably within it: the larger of the solar phase angle's range and the angle the
+#: phase-angle bisector turns (the aspect of the spin axis changes by up to as much). The
+#: amplitude grows as ``1 + m α`` with m ≈ 0.013–0.03 per degree of phase angle (Zappalà et
+#: al. 1990, A&A 231, 548), i.e. by 40–90 % over 30°.
+GEOMETRY_CHANGE_DEG = 30.0
+#: Ratios p:q of the two frequencies (coprime, p, q ≤ 4) whose combinations are the
+#: harmonics of one frequency, ``f2/q``, when the pair lies near them.
+HARMONIC_RATIOS = tuple((p, q) for p in range(1, 5) for q in range(1, 5) if math.gcd(p, q) == 1)
 
 
 def rotator_bic(
@@ -77,6 +91,86 @@ def rotator_bic(
         for f in frequencies
         for order in sorted({*orders, *SINGLE_HARMONICS})
     )
+
+
+def geometry_change_deg(sun: np.ndarray, observer: np.ndarray) -> float:
+    """How far the geometry moves over the points (deg): the larger of the solar phase
+    angle's range and the largest angle between the phase-angle bisector at a point and at
+    the first.
+
+    Parameters
+    ----------
+    sun, observer : (n, 3) float
+        Object → Sun and object → observer vectors (any common frame).
+    """
+    sun_unit = sun / np.linalg.norm(sun, axis=1)[:, None]
+    observer_unit = observer / np.linalg.norm(observer, axis=1)[:, None]
+    phase = np.arccos(np.clip(np.sum(sun_unit * observer_unit, axis=1), -1.0, 1.0))
+    bisector = sun_unit + observer_unit
+    bisector /= np.linalg.norm(bisector, axis=1)[:, None]
+    turn = np.arccos(np.clip(bisector @ bisector[0], -1.0, 1.0))
+    return float(np.degrees(max(np.ptp(phase), turn.max())))
+
+
+def geometry_explains_pair(
+    pair: Sequence[float],
+    span_s: float,
+    sun: np.ndarray,
+    observer: np.ndarray,
+    *,
+    resolution_cycles: float,
+) -> bool:
+    """Whether one period whose light curve changes with the geometry explains a fitted pair.
+
+    True when the geometry moves by more than ``GEOMETRY_CHANGE_DEG`` over the points
+    (:func:`geometry_change_deg`) and the two frequencies lie within ``resolution_cycles``
+    cycles per span of a ratio p:q of ``HARMONIC_RATIOS`` (``|q f2 − p f1| T <
+    resolution_cycles``). Every combination ``j f1 + k f2`` is then a harmonic of ``f2/q``
+    offset by a multiple of ``|q f2 − p f1|/q``: sidebands that beat by less than the
+    frequency resolution over the arc (1.5 cycles: Loumos & Deeming 1978, Ap&SS 56, 285),
+    which is how a changing amplitude and shape look in a two-frequency series. A tumbler's
+    near-commensurate pair is told apart only where the geometry stands still.
+
+    Parameters
+    ----------
+    pair : (f1, f2)
+        The fitted frequencies (Hz).
+    span_s : float
+        Time span T (s) of the points.
+    sun, observer : (n, 3) float
+        Object → Sun and object → observer vectors of the points (any common frame).
+    resolution_cycles : float
+        Cycles per span that resolve two frequencies.
+
+    Returns
+    -------
+    bool
+    """
+    f1, f2 = pair
+    near_ratio = any(abs(q * f2 - p * f1) * span_s < resolution_cycles for p, q in HARMONIC_RATIOS)
+    return near_ratio and geometry_change_deg(sun, observer) > GEOMETRY_CHANGE_DEG
+
+
+def search_penalty(independent_trials: float) -> float:
+    """The ΔBIC a second frequency must add for having been searched: ``2 ln M``.
+
+    The BIC counts a frequency as one parameter (``ln N``), as if its value were known in
+    advance; the largest of M independent periodogram peaks of pure noise grows as ``ln M``
+    in ``Δχ²/2`` (false-alarm probability ``≈ M e^{−Δχ²/2}``: Scargle 1982, ApJ 263, 835;
+    Horne & Baliunas 1986, ApJ 302, 757). The threshold of a searched frequency is
+    therefore raised by ``2 ln M``.
+
+    Parameters
+    ----------
+    independent_trials : float
+        M, the independent trial frequencies: the searched band times the span T.
+
+    Returns
+    -------
+    float
+        ``2 ln M`` (0 for M ≤ 1).
+    """
+    return 2.0 * math.log(max(float(independent_trials), 1.0))
 
 
 def _single_bic(

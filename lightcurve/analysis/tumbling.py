@@ -41,10 +41,15 @@ The search (:func:`tumbling_search`):
    points, where the Hessian ``H`` of χ² (central differences) gives the covariance
    ``2 χ²_ν H⁻¹`` of (f1, f2);
 4. the verdict: **tumbling** when the two-period fit beats the one-period rival by
-   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC`` and the two frequencies are resolved
+   ``ΔBIC = BIC₁ − BIC₂ > SIGNIFICANT_DELTA_BIC + 2 ln M`` (M the independent trial
+   second frequencies, the band times T:
+   :func:`~lightcurve.analysis.rotator_rival.search_penalty`) and the two frequencies are resolved
    (``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T`` for ``(p, q)`` in ``RESOLVED_RATIOS``)
    and not commensurate (``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` for some
-   ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one).
+   ``p, q ≤ COMMENSURATE_MAX`` makes the second "period" a harmonic of a single one),
+   and, where the phase angle or the bisector moves by more than 30° over the arc, not
+   within ``MIN_SEPARATION_CYCLES / T`` of a ratio p:q ≤ 4 (a changing one-period light
+   curve, :func:`~lightcurve.analysis.rotator_rival.geometry_explains_pair`).
 
 Interpretation (``precession_period_h``, ``rotation_period_h``, ``mode``,
 :func:`euler_reading`). Two generators of the same lattice of combination frequencies are
@@ -77,7 +82,7 @@ from lightcurve.analysis.period import (
     StackedLightCurves,
     period_search,
 )
-from lightcurve.analysis.rotator_rival import rotator_bic
+from lightcurve.analysis.rotator_rival import geometry_explains_pair, rotator_bic, search_penalty
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -561,7 +566,15 @@ def tumbling_search(
         chi2=chi2,
         n_points=n,
         delta_bic=delta_bic,
-        tumbling=bool(delta_bic > SIGNIFICANT_DELTA_BIC and _admissible(pair, span)),
+        tumbling=bool(
+            # The second frequency was searched over len(second) / oversample independent
+            # trials.
+            delta_bic > SIGNIFICANT_DELTA_BIC + search_penalty(len(second) / oversample)
+            and _admissible(pair, span)
+            and not geometry_explains_pair(
+                pair, span, data.sun, data.observer, resolution_cycles=MIN_SEPARATION_CYCLES
+            )
+        ),
         commensurate=commensurate,
         combinations=combinations,
         single=single,

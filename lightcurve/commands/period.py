@@ -8,8 +8,9 @@ phase-angle bisector and the sidereal period is scanned. A glint-spacing period 
 cross-check with --glints when a light curve shows at least three glints.
 
 Tumbling (non-principal-axis rotation): with --tumbling the two-period Fourier series is
-searched as well; it is called tumbling when it beats one period by ΔBIC > 10 with
-non-commensurate periods. Keys periods_h, precession_period_h, rotation_period_h, mode,
+searched as well; it is called tumbling when it beats one period by ΔBIC > 10 + 2 ln M (M
+the trial second frequencies) with non-commensurate periods that one period changing with
+the geometry does not explain. Keys periods_h, precession_period_h, rotation_period_h, mode,
 tumbling, delta_bic, combinations; plot OUT/tumbling_periodogram.png. Without --tumbling
 these keys are null, and a note suggests it when the files span at most HINT_SPAN_DAYS and
 the one-period fit leaves residuals HINT_REDUCED_CHI2 times their stated variance (the

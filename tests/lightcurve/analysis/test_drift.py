@@ -86,8 +86,8 @@ def _turning_observer_night(rate_rad_h: float, period_s: float = 600.0) -> Obser
 
 
 def test_sidereal_nights_carry_the_pab_systematic():
-    """With a pole, each night's error includes PAB_SYSTEMATIC · P² |Λ̇| / 2π; the drift
-    fit weights the nights by the total."""
+    """With a pole, each night carries PAB_SYSTEMATIC · P² |Λ̇| / 2π; the drift fit weights
+    the nights by the total."""
     rate = 0.3  # rad/h of the observer; the bisector turns at 0.15 rad/h
     (night,) = night_periods([_turning_observer_night(rate)], (0.12, 0.25), pole=(0.0, np.pi / 2))
     expected = PAB_SYSTEMATIC * night.period_h**2 * (rate / 2) / (2 * np.pi)
@@ -102,3 +102,42 @@ def test_sidereal_nights_carry_the_pab_systematic():
         NightPeriod("c", "period", 2.0, 0.1, 1e-6),
     ]
     assert abs(fit_drift(nights).period_derivative_s_per_day) < 1e-3
+
+
+def _seasonal_nights(change_s: float, systematic_s: float, rng, count=30):
+    """Constant 360-s nights whose periods follow a smooth seasonal error (a quarter sine
+    wave rising by ``change_s`` over the nights) with a small fit scatter."""
+    days = np.arange(count, dtype=float)
+    error = change_s * np.sin(0.5 * np.pi * days / days[-1])
+    return [
+        NightPeriod(
+            f"night{d}.csv",
+            "period",
+            60000.0 + d,
+            (360.0 + e + rng.normal(0, 0.02)) / 3600,
+            0.02 / 3600,
+            systematic_s / 3600,
+        )
+        for d, e in zip(days, error, strict=True)
+    ]
+
+
+def test_common_systematic_covers_a_smooth_seasonal_error():
+    """The nights' systematic S is common to them: it adds S k!/T^k to the k-th
+    coefficient's σ in quadrature, so a smooth error rising by 1.5 S over the nights (a
+    drift to the line, invisible in its χ²) stays within 2σ; counted as independent
+    nightly errors it would not (σ ≈ √(σ_n² + S²) / (√N · std t))."""
+    rng = np.random.default_rng(21)
+    systematic = 0.06
+    nights = _seasonal_nights(1.5 * systematic, systematic, rng)
+    fit = fit_drift(nights)
+    plain = fit_drift([NightPeriod(n.file, n.series, n.mjd, n.period_h, n.sigma_h) for n in nights])
+    span = 29.0
+    assert plain.reduced_chi2 < 1.5  # the scatter about the line does not reveal the error
+    assert fit.period_derivative_s_per_day == pytest.approx(plain.period_derivative_s_per_day)
+    independent = np.hypot(0.02, systematic) / (np.sqrt(30) * np.std(np.arange(30)))
+    assert fit.derivative_sigma_s_per_day == pytest.approx(np.hypot(independent, systematic / span))
+    assert abs(fit.period_derivative_s_per_day) < 2 * fit.derivative_sigma_s_per_day
+    assert abs(fit.period_derivative_s_per_day) > 2 * independent
+    quadratic = fit_drift(nights, quadratic=True)
+    assert quadratic.second_derivative_sigma_s_per_day2 >= 2 * systematic / span**2
