@@ -10,15 +10,17 @@ motion itself, fitted to the light curve under each reading, picks the true one.
 attitude. Truncated at degree 2 of the rotation group, it is linear in the entries of the
 attitude matrix and in the 25 degree-2 functions ``tr(S_a M S_b Mᵀ)`` (S_a: a basis of the
 symmetric traceless matrices; Edmonds 1957, *Angular Momentum in Quantum Mechanics*,
-ch. 4). A constant rotation on either side of ``M`` (the direction of ``L``, the initial
-precession angle, the shape's axes) is a linear map of these columns, so only the
-torque-free motion in the frame of ``L`` (:mod:`filters.attitude.torque_free_motion`) is
-nonlinear: the moments ``A/C``, ``B/C`` on a ``grid × grid`` lattice (triangle inequality),
-``d = L²/(2E)`` solved for the reading's ratio ``P_φ/P_ψ``, and the time origin of the
-rotation over half a rotation period (``phases`` steps; a half-period shift is a constant
-rotation by π). Fitted in flux (``10^{−0.4 m}``, weights from the magnitude errors), each
-curve with a cubic trend, every coefficient varying within the curve as a Legendre
-polynomial of degree ``MODULATION`` (the geometry's slow change).
+ch. 4); at degree 3 (``--degree 3``) also in the 49 functions ``⟨T_a, (M ⊗ M ⊗ M) T_b⟩``
+of the symmetric traceless rank-3 tensors T_a. A constant rotation on either side of ``M``
+(the direction of ``L``, the initial precession angle, the shape's axes) is a linear map of
+these columns, so only the torque-free motion in the frame of ``L``
+(:mod:`filters.attitude.torque_free_motion`) is nonlinear: the moments ``A/C``, ``B/C`` on a
+``grid × grid`` lattice (triangle inequality), ``d = L²/(2E)`` solved for the reading's
+ratio ``P_φ/P_ψ``, and the time origin of the rotation over half a rotation period
+(``phases`` steps; a half-period shift is a constant rotation by π). Fitted in flux
+(``10^{−0.4 m}``, weights from the magnitude errors), each curve with a cubic trend, every
+coefficient varying within the curve as a Legendre polynomial of degree ``MODULATION`` (the
+geometry's slow change).
 
 **Readings.** Every basis ``T (f_φ, f_ψ)`` of the *true* pair (entries of T in {−1, 0, 1},
 ``|det T| = 1``, both positive) in SAM and in LAM, kept when the torque-free period ratio
@@ -31,6 +33,7 @@ energy and period, time origin scanned: the truncation's floor) and the two-peri
 series at the true pair (order 6, the same trend and modulation: the model-free floor).
 
     python -m benchmarks.tumbling_model_reading [--seed 1] [--runs 0,1,4] [--points 1500]
+        [--grid 7] [--phases 16] [--degree 2]
 """
 
 from __future__ import annotations
@@ -68,25 +71,43 @@ FOURIER_ORDER = 6
 _ENERGY_STEPS = 60
 
 
-def _traceless_basis() -> np.ndarray:
-    """(5, 3, 3) orthogonal basis of the symmetric traceless matrices."""
-    basis = np.zeros((5, 3, 3))
-    basis[0] = np.diag([1.0, -1.0, 0.0])
-    basis[1] = np.diag([1.0, 1.0, -2.0]) / math.sqrt(3.0)
-    for n, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
-        basis[2 + n, i, j] = basis[2 + n, j, i] = 1.0
-    return basis
+def _traceless_basis(rank: int) -> np.ndarray:
+    """(2 rank + 1, 3, …, 3) orthonormal basis of the symmetric traceless tensors of
+    ``rank`` (2 or 3): the null space of the symmetrisation's complement and the trace."""
+    size = 3**rank
+    symmetrise = np.zeros((size, size))
+    for index in itertools.product(range(3), repeat=rank):
+        row = np.ravel_multi_index(index, (3,) * rank)
+        perms = list(itertools.permutations(index))
+        for perm in perms:
+            symmetrise[row, np.ravel_multi_index(perm, (3,) * rank)] += 1.0 / len(perms)
+    trace = np.einsum("nii...->n...", np.eye(size).reshape((size,) + (3,) * rank))
+    constraints = np.concatenate([np.eye(size) - symmetrise, trace.reshape(size, -1).T])
+    _, values, vectors = np.linalg.svd(constraints)
+    null = vectors[np.sum(values > 1e-9) :]
+    return null.reshape((len(null),) + (3,) * rank)
 
 
-_TRACELESS = _traceless_basis()
+_TRACELESS = _traceless_basis(2)
+_TRACELESS_3 = _traceless_basis(3)
 
 
-def model_columns(attitude: np.ndarray) -> np.ndarray:
+def model_columns(attitude: np.ndarray, degree: int = 2) -> np.ndarray:
     """(N, 34) degree-1 and degree-2 functions of attitude matrices (N, 3, 3) (module
-    docstring); the constant is the trend's."""
+    docstring), with ``degree = 3`` also the 49 degree-3 ones (N, 83); the constant is the
+    trend's."""
+    n = len(attitude)
     rotated = np.einsum("nij,ajk,nlk->nail", attitude, _TRACELESS, attitude)
-    second = np.einsum("nail,bil->nab", rotated, _TRACELESS).reshape(len(attitude), 25)
-    return np.concatenate([attitude.reshape(len(attitude), 9), second], axis=1)
+    columns = [
+        attitude.reshape(n, 9),
+        np.einsum("nail,bil->nab", rotated, _TRACELESS).reshape(n, 25),
+    ]
+    if degree == 3:
+        once = np.einsum("nip,bpqr->nbiqr", attitude, _TRACELESS_3)
+        twice = np.einsum("njq,nbiqr->nbijr", attitude, once)
+        thrice = np.einsum("nkr,nbijr->nbijk", attitude, twice)
+        columns.append(np.einsum("nbijk,aijk->nab", thrice, _TRACELESS_3).reshape(n, 49))
+    return np.concatenate(columns, axis=1)
 
 
 def reading_hypotheses(pair: np.ndarray) -> list[tuple[float, float, str]]:
@@ -135,7 +156,8 @@ def motions_with_ratio(ratio: float, mode: str, grid: int) -> list[ScaledMotion]
 class FluxFit:
     """Weighted least squares in flux with per-curve trend and modulated coefficients."""
 
-    def __init__(self, data: StackedLightCurves, keep: np.ndarray) -> None:
+    def __init__(self, data: StackedLightCurves, keep: np.ndarray, degree: int = 2) -> None:
+        self.degree = degree
         magnitude = data.magnitudes[keep]
         flux = 10.0 ** (-0.4 * (magnitude - np.median(magnitude)))
         sigma = flux * 0.4 * math.log(10.0) * data.sigma[keep]
@@ -147,7 +169,7 @@ class FluxFit:
 
     def chi2(self, attitude: np.ndarray) -> float:
         """χ² of the model columns of ``attitude`` (N, 3, 3) at the fit's points."""
-        x = model_columns(attitude).T
+        x = model_columns(attitude, self.degree).T
         x = np.concatenate([x * row for row in self.legendre], axis=0)
         design = self.design
         xw = x * design.w
@@ -165,14 +187,16 @@ class FluxFit:
         )
 
 
-def study_run(seed: int, index: int, *, points: int, grid: int, phases: int) -> dict[str, Any]:
+def study_run(
+    seed: int, index: int, *, points: int, grid: int, phases: int, degree: int = 2
+) -> dict[str, Any]:
     """The figures of one run of the tumbler benchmark (module docstring)."""
     observations, inertia, omega, scenario, _ = simulate_run(seed, index)
     truth = euler_periods(inertia, omega)
     data = StackedLightCurves.of(observations)
     n = len(data.times)
     keep = np.sort(np.random.default_rng(n).choice(n, min(n, points), replace=False))
-    fit = FluxFit(data, keep)
+    fit = FluxFit(data, keep, degree)
     pair = np.array([1.0 / truth.precession_period_s, 1.0 / truth.rotation_period_s])
     started = time.process_time()
     readings = []
@@ -227,10 +251,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--points", type=int, default=1500, help="points fitted per run")
     parser.add_argument("--grid", type=int, default=7, help="moment lattice per axis")
     parser.add_argument("--phases", type=int, default=16, help="time origins per half period")
+    parser.add_argument("--degree", type=int, choices=(2, 3), default=2, help="model degree")
     parser.add_argument("--out", help="also write the JSON report here")
     args = parser.parse_args(argv)
     records = [
-        study_run(args.seed, int(i), points=args.points, grid=args.grid, phases=args.phases)
+        study_run(
+            args.seed,
+            int(i),
+            points=args.points,
+            grid=args.grid,
+            phases=args.phases,
+            degree=args.degree,
+        )
         for i in args.runs.split(",")
     ]
     report = {
@@ -238,6 +270,7 @@ def main(argv: list[str] | None = None) -> None:
         "points": args.points,
         "grid": args.grid,
         "phases": args.phases,
+        "degree": args.degree,
         "machine": machine_info(),
         "true_reading_first": int(sum(r["true_rank"] == 0 for r in records)),
         "runs": len(records),

@@ -21,14 +21,15 @@ def _random_rotations(rng, n):
     return attitude_matrix(random_quaternion((n,), rng))
 
 
-def test_columns_absorb_constant_rotations_on_either_side():
+@pytest.mark.parametrize(("degree", "functions"), [(2, 9 + 25), (3, 9 + 25 + 49)])
+def test_columns_absorb_constant_rotations_on_either_side(degree, functions):
     rng = np.random.default_rng(0)
-    attitude = _random_rotations(rng, 200)
+    attitude = _random_rotations(rng, 400)
     left, right = _random_rotations(rng, 2)
-    columns = model_columns(attitude)
-    turned = model_columns(left @ attitude @ right)
-    assert np.linalg.matrix_rank(columns) == 34
-    assert np.linalg.matrix_rank(np.concatenate([columns, turned], axis=1)) == 34
+    columns = model_columns(attitude, degree)
+    turned = model_columns(left @ attitude @ right, degree)
+    assert np.linalg.matrix_rank(columns) == functions
+    assert np.linalg.matrix_rank(np.concatenate([columns, turned], axis=1)) == functions
 
 
 @pytest.mark.parametrize("mode", ["SAM", "LAM"])
