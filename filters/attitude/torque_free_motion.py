@@ -28,9 +28,12 @@ and the initial precession angle) and shifted in time.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from scipy.special import ellipj, ellipk, elliprf, elliprj
+from scipy.special import ellipj, ellipk
+
+from filters.attitude.torque_free_periods import elliptic_parameters, elliptic_periods
 
 __all__ = [
     "ScaledMotion",
@@ -44,24 +47,22 @@ __all__ = [
 _PHASE_SAMPLES = 512
 
 
-def _elliptic(moments: np.ndarray, d: np.ndarray, mode: str):
-    """Scale s, parameter k² and the amplitudes of (ω_o, ω_b, ω_r) (|L| = 1), vectorised
-    over the leading axes of ``moments`` (…, 3) and ``d`` (…)."""
-    if mode not in ("SAM", "LAM"):
-        raise ValueError(f"unknown mode {mode!r}: expected 'SAM' or 'LAM'")
+def _elliptic(moments: np.ndarray, d: Any, mode: str) -> tuple[np.ndarray, ...]:
+    """Scale s, parameter k², the amplitudes of (ω_o, ω_b, ω_r) (|L| = 1) and the moments
+    (I_o, I_b, I_r), vectorised over the leading axes of ``moments`` (…, 3) and ``d`` (…)."""
+    two_e = 1.0 / np.asarray(d, float)
+    scale, k2 = elliptic_parameters(moments, 1.0, two_e, mode)
     a, b, c = np.moveaxis(np.asarray(moments, float), -1, 0)
     o, r = (a, c) if mode == "SAM" else (c, a)
-    two_e = 1.0 / np.asarray(d, float)
     amp_o = np.sqrt((two_e * r - 1.0) / (o * (r - o)))
     amp_b = np.sqrt((two_e * r - 1.0) / (b * (r - b)))
     amp_r = np.sqrt((1.0 - two_e * o) / (r * (r - o)))
-    s = np.sqrt((r - b) * (1.0 - two_e * o) / (o * b * r))
-    k2 = (b - o) * (two_e * r - 1.0) / ((r - b) * (1.0 - two_e * o))
-    return s, k2, amp_o, amp_b, amp_r, o, b, r
+    return scale, k2, amp_o, amp_b, amp_r, o, b, r
 
 
 def period_ratio(moments: np.ndarray, d: np.ndarray, mode: str) -> np.ndarray:
-    """``P_φ/P_ψ = f_ψ/f_φ`` of the scale-free motions (module docstring), vectorised.
+    """``P_φ/P_ψ = f_ψ/f_φ`` of the scale-free motions (module docstring), vectorised
+    (:func:`~filters.attitude.torque_free_periods.elliptic_periods`).
 
     Parameters
     ----------
@@ -75,12 +76,8 @@ def period_ratio(moments: np.ndarray, d: np.ndarray, mode: str) -> np.ndarray:
     -------
     (…) float
     """
-    s, k2, _, _, _, o, b, r = _elliptic(moments, d, mode)
-    quarter = ellipk(k2)
-    n = -r * (b - o) / (o * (r - b))
-    third = elliprf(0.0, 1 - k2, 1.0) + n / 3.0 * elliprj(0.0, 1 - k2, 1.0, 1.0 - n)
-    rate = 1.0 / r * (1.0 + (r - o) / o * third / quarter)
-    return 2 * np.pi / (rate * 4.0 * quarter / s)
+    rotation, precession = elliptic_periods(moments, 1.0, 1.0 / np.asarray(d, float), mode)
+    return precession / rotation
 
 
 @dataclass(frozen=True)
