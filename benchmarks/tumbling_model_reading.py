@@ -199,10 +199,13 @@ def study_run(
     fit = FluxFit(data, keep, degree)
     pair = np.array([1.0 / truth.precession_period_s, 1.0 / truth.rotation_period_s])
     started = time.process_time()
-    readings = []
+    readings, unreachable = [], 0
     for f_phi, f_psi, mode in reading_hypotheses(pair):
         motions = motions_with_ratio(f_psi / f_phi, mode, grid)
-        chi2 = min((fit.best_origin(m, f_psi, phases) for m in motions), default=math.inf)
+        if not motions:  # no body of the lattice has this period ratio in this mode
+            unreachable += 1
+            continue
+        chi2 = min(fit.best_origin(m, f_psi, phases) for m in motions)
         readings.append(
             {
                 "precession_s": 1.0 / f_phi,
@@ -214,8 +217,8 @@ def study_run(
         )
     cpu = time.process_time() - started
     readings.sort(key=lambda r: r["chi2"])
-    rank = next(i for i, r in enumerate(readings) if r["true"])
-    true_chi2 = readings[rank]["chi2"]
+    rank = next((i for i, r in enumerate(readings) if r["true"]), None)
+    true_chi2 = None if rank is None else readings[rank]["chi2"]
     rival = min(r["chi2"] for r in readings if not r["true"])
     moments, rates = principal_state(inertia, omega)
     two_e = float(np.sum(moments * rates**2))
@@ -240,6 +243,7 @@ def study_run(
         "model_at_true_motion_chi2": floor_model,
         "fourier_at_true_pair_chi2": float(fourier),
         "readings": readings,
+        "readings_without_motion": unreachable,
         "reading_cpu_s": cpu,
     }
 
@@ -273,6 +277,7 @@ def main(argv: list[str] | None = None) -> None:
         "degree": args.degree,
         "machine": machine_info(),
         "true_reading_first": int(sum(r["true_rank"] == 0 for r in records)),
+        "true_reading_without_motion": int(sum(r["true_rank"] is None for r in records)),
         "runs": len(records),
         "records": records,
     }
