@@ -23,9 +23,11 @@ coefficient varying within the curve as a Legendre polynomial of degree ``MODULA
 geometry's slow change).
 
 **Readings.** Every basis ``T (f_φ, f_ψ)`` of the *true* pair (entries of T in {−1, 0, 1},
-``|det T| = 1``, both positive) in SAM and in LAM, kept when the torque-free period ratio
-allows it: ``f_ψ/f_φ < 1/2`` in a SAM, ``< C/A − 1`` in a LAM with ``C/A ≤ MAX_MOMENT_RATIO``.
-The true pair isolates the reading step from the search's errors.
+``|det T| = 1``, both positive) in SAM and in LAM, and the twin of each (the same spin about
+``L`` and the same other frequency x read in the other mode: a SAM ``(f_s + x, x)`` and a
+LAM ``(x, f_s − x)``), kept when the torque-free period ratio allows it: ``f_ψ/f_φ < 1/2``
+in a SAM, ``< C/A − 1`` in a LAM with ``C/A ≤ MAX_MOMENT_RATIO``. The true pair isolates
+the reading step from the search's errors.
 
 **Figures per run.** Each reading's least χ²; the true reading's rank; the margin of the
 best rival; two references on the same points: the model at the true motion (true moments,
@@ -112,20 +114,26 @@ def model_columns(attitude: np.ndarray, degree: int = 2) -> np.ndarray:
 
 def reading_hypotheses(pair: np.ndarray) -> list[tuple[float, float, str]]:
     """The readings ``(f_φ, f_ψ, mode)`` of a frequency pair (module docstring)."""
-    readings: list[tuple[float, float, str]] = []
+    candidates = []
     for entries in itertools.product((0, 1, -1), repeat=4):
         basis = np.array(entries, float).reshape(2, 2)
-        if abs(np.linalg.det(basis)) < 0.5:
-            continue
-        f_phi, f_psi = basis @ pair
-        if min(f_phi, f_psi) <= 0:
-            continue
-        for mode, bound in (("SAM", 0.5), ("LAM", MAX_MOMENT_RATIO - 1.0)):
-            reading = (float(f_phi), float(f_psi), mode)
-            if f_psi / f_phi < bound and not any(
+        if abs(np.linalg.det(basis)) > 0.5:
+            f_phi, f_psi = basis @ pair
+            candidates += [(f_phi, f_psi, "SAM"), (f_phi, f_psi, "LAM")]
+            # The twins: the same spin about L, f_φ − f_ψ (SAM) or f_φ + f_ψ (LAM), and x.
+            candidates += [(f_psi, f_phi - 2 * f_psi, "LAM"), (2 * f_phi + f_psi, f_phi, "SAM")]
+    readings: list[tuple[float, float, str]] = []
+    for f_phi, f_psi, mode in candidates:
+        bound = 0.5 if mode == "SAM" else MAX_MOMENT_RATIO - 1.0
+        reading = (float(f_phi), float(f_psi), mode)
+        if (
+            min(f_phi, f_psi) > 0
+            and f_psi / f_phi < bound
+            and not any(
                 np.allclose(reading[:2], r[:2], rtol=1e-9) and mode == r[2] for r in readings
-            ):
-                readings.append(reading)
+            )
+        ):
+            readings.append(reading)
     return readings
 
 
