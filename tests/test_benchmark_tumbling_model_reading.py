@@ -77,8 +77,8 @@ def test_true_motion_fits_an_integrated_tumbler_to_the_noise():
     least = {
         reading: min(
             (
-                fit.best_origin(m, reading[1], 16)
-                for m in motions_with_ratio(reading[1] / reading[0], reading[2], grid=5)
+                fit.best_origin(m, reading[1], 10)
+                for m in motions_with_ratio(reading[1] / reading[0], reading[2], grid=4)
             ),
             default=np.inf,
         )
