@@ -17,8 +17,8 @@ from the body components of ``L``: ``L_x = L sin θ sin ψ``, ``L_y = L sin θ c
 ``L_z = L cos θ``, and the precession rate ``φ̇ = L (I_x ω_x² + I_y ω_y²) / (I_x² ω_x² +
 I_y² ω_y²)`` (Landau & Lifshitz §37; :mod:`filters.attitude.torque_free_periods`).
 
-Scale-free form: the largest moment is 1, ``|L| = 1`` and ``d = L²/(2E)`` (``I_b < d < C``
-in a SAM, ``A < d < I_b`` in a LAM). Time is in units of the rotation period ``P_ψ``, so a
+Scale-free form: the largest moment is 1, ``|L| = 1`` and ``d = L²/(2E)`` (``B < d < C``
+in a SAM, ``A < d < B`` in a LAM). Time is in units of the rotation period ``P_ψ``, so a
 motion of given moments and ``d`` is one function of ``τ = t/P_ψ``; its period ratio
 ``P_φ/P_ψ`` is :func:`period_ratio`. A real motion of those moments, energy and ``L`` is this
 one with time scaled by ``P_ψ``, rotated by a constant rotation (the direction of ``L``
