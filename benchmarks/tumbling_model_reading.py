@@ -250,6 +250,7 @@ def study_run(
         "best_rival_chi2": rival,
         "model_at_true_motion_chi2": floor_model,
         "fourier_at_true_pair_chi2": float(fourier),
+        "true_motion_to_fourier_ratio": floor_model / float(fourier),
         "readings": readings,
         "readings_without_motion": unreachable,
         "reading_cpu_s": cpu,
