@@ -198,7 +198,27 @@ class FluxFit:
 def study_run(
     seed: int, index: int, *, points: int, grid: int, phases: int, degree: int = 2
 ) -> dict[str, Any]:
-    """The figures of one run of the tumbler benchmark (module docstring)."""
+    """The figures of one run of the tumbler benchmark (module docstring).
+
+    Parameters
+    ----------
+    seed, index : int
+        The run (:func:`benchmarks.tumbling_periods.simulate_run`).
+    points : int
+        Points fitted (a subset drawn with the seed ``N``, the run's point count).
+    grid : int
+        Moment lattice per axis.
+    phases : int
+        Time origins per half rotation period.
+    degree : int
+        Model degree, 2 or 3.
+
+    Returns
+    -------
+    dict
+        JSON-ready figures; ``true_rank`` is 0 when the true reading has the least χ²
+        (None when no body of the lattice has its period ratio).
+    """
     observations, inertia, omega, scenario, _ = simulate_run(seed, index)
     truth = euler_periods(inertia, omega)
     data = StackedLightCurves.of(observations)
