@@ -133,10 +133,10 @@ def draw_geometry(rng: np.random.Generator, scenario: str) -> Observations:
     return geo_geometry(rng, duration, max(CADENCE_S, duration / MAX_POINTS))[0]
 
 
-def run_case(
+def simulate_run(
     seed: int, index: int, *, mode: str | None = None, scenario: str | None = None
-) -> dict[str, Any]:
-    """One seeded run (module docstring): simulate, search, score.
+) -> tuple[Observations, np.ndarray, np.ndarray, str, float]:
+    """The light curve of one seeded run (module docstring).
 
     Parameters
     ----------
@@ -150,8 +150,14 @@ def run_case(
 
     Returns
     -------
-    dict
-        JSON-ready record with the truth, the estimate and the scores.
+    observations : Observations
+    inertia : (3, 3) float
+        Body-frame inertia (kg m²).
+    omega : (3,) float
+        Body rates at the first epoch (rad/s).
+    scenario : str
+    noise : float
+        Gaussian noise (mag).
     """
     rng = np.random.default_rng([seed, index])
     mode = mode or ("SAM" if index % 2 == 0 else "LAM")
@@ -171,6 +177,22 @@ def run_case(
         noise=GaussianNoise(noise),
         shadows="none",
         seed=rng,
+    )
+    return observations, inertia, omega, scenario, noise
+
+
+def run_case(
+    seed: int, index: int, *, mode: str | None = None, scenario: str | None = None
+) -> dict[str, Any]:
+    """One seeded run (:func:`simulate_run`): simulate, search, score.
+
+    Returns
+    -------
+    dict
+        JSON-ready record with the truth, the estimate and the scores.
+    """
+    observations, inertia, omega, scenario, noise = simulate_run(
+        seed, index, mode=mode, scenario=scenario
     )
     truth = euler_periods(inertia, omega)
     span = float(np.ptp(observations.times))

@@ -20,6 +20,9 @@ propagation
 torque_free_periods
     Rotation and mean precession periods of non-principal-axis rotation (closed form and
     integrated), the SAM/LAM mode.
+torque_free_motion
+    Closed-form torque-free attitude about the angular momentum (Jacobi elliptic functions),
+    scale-free: a function of time in rotation periods.
 jacobians
     Analytic Jacobians of the dynamics for EKFs and the discrete transition matrix.
 arrays
@@ -33,6 +36,7 @@ from filters.attitude import (
     kinematics,
     propagation,
     quaternion,
+    torque_free_motion,
     torque_free_periods,
 )
 from filters.attitude.inertia import *  # noqa: F403
@@ -40,6 +44,7 @@ from filters.attitude.jacobians import *  # noqa: F403
 from filters.attitude.kinematics import *  # noqa: F403
 from filters.attitude.propagation import *  # noqa: F403
 from filters.attitude.quaternion import *  # noqa: F403
+from filters.attitude.torque_free_motion import *  # noqa: F403
 from filters.attitude.torque_free_periods import *  # noqa: F403
 
 # The public names are those of the submodules (each lists its own in ``__all__``).
@@ -50,6 +55,7 @@ __all__ = sorted(
         *kinematics.__all__,
         *propagation.__all__,
         *quaternion.__all__,
+        *torque_free_motion.__all__,
         *torque_free_periods.__all__,
     ]
 )

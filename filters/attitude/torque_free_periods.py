@@ -49,7 +49,14 @@ from scipy.special import ellipk, elliprf, elliprj
 from filters.attitude.inertia import validate_inertia
 from filters.attitude.propagation import propagate
 
-__all__ = ["EulerPeriods", "euler_periods", "euler_periods_numeric", "principal_state"]
+__all__ = [
+    "EulerPeriods",
+    "elliptic_parameters",
+    "elliptic_periods",
+    "euler_periods",
+    "euler_periods_numeric",
+    "principal_state",
+]
 
 #: Rates within this fraction of |ω| off a principal axis count as a principal-axis rotation.
 PRINCIPAL_TOLERANCE = 1e-9
@@ -112,6 +119,52 @@ def _principal_periods(w: np.ndarray) -> EulerPeriods:
     return EulerPeriods("PA", spin, spin)
 
 
+def elliptic_parameters(
+    moments: Any, l2: Any, two_e: Any, mode: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scale ``s`` and parameter ``k²`` of the body rates' Jacobi functions of ``u = s t``
+    (Landau & Lifshitz 1976, §37), vectorised.
+
+    With the reference axis r (C in a SAM, A in a LAM), the opposite extreme axis o and the
+    intermediate b: ``s² = (I_r − I_b)(L² − 2E I_o)/(A B C)``, ``k² = (I_b − I_o)(2E I_r −
+    L²)/((I_r − I_b)(L² − 2E I_o))``.
+
+    Parameters
+    ----------
+    moments : (..., 3) array_like
+        Principal moments ``A ≤ B ≤ C``.
+    l2, two_e : array_like
+        ``|L|²`` and twice the rotational energy (broadcast against the moments' batch).
+    mode : str
+        ``"SAM"`` or ``"LAM"``.
+
+    Returns
+    -------
+    s, k2 : numpy.ndarray
+    """
+    if mode not in ("SAM", "LAM"):
+        raise ValueError(f"unknown mode {mode!r}: expected 'SAM' or 'LAM'")
+    a, b, c = np.moveaxis(np.asarray(moments, float), -1, 0)
+    reference, opposite = (c, a) if mode == "SAM" else (a, c)
+    scale = np.sqrt((reference - b) * (l2 - two_e * opposite) / (a * b * c))
+    k2 = (b - opposite) * (two_e * reference - l2) / ((reference - b) * (l2 - two_e * opposite))
+    return scale, k2
+
+
+def elliptic_periods(moments: Any, l2: Any, two_e: Any, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and mean precession periods ``(P_ψ, P_φ)`` in closed form (module
+    docstring), vectorised over the arguments of :func:`elliptic_parameters`."""
+    scale, k2 = elliptic_parameters(moments, l2, two_e, mode)
+    a, b, c = np.moveaxis(np.asarray(moments, float), -1, 0)
+    reference, opposite = (c, a) if mode == "SAM" else (a, c)
+    quarter = ellipk(k2)
+    n = -reference * (b - opposite) / (opposite * (reference - b))
+    # Π(n, k) = R_F(0, 1 − k², 1) + n/3 · R_J(0, 1 − k², 1, 1 − n) (Carlson 1995).
+    third = elliprf(0.0, 1 - k2, 1.0) + n / 3.0 * elliprj(0.0, 1 - k2, 1.0, 1.0 - n)
+    rate = np.sqrt(l2) / reference * (1.0 + (reference - opposite) / opposite * third / quarter)
+    return 4.0 * quarter / scale, 2 * np.pi / rate
+
+
 def euler_periods(inertia: Any, omega: Any) -> EulerPeriods:
     """Closed-form rotation and mean precession periods (module docstring).
 
@@ -135,17 +188,8 @@ def euler_periods(inertia: Any, omega: Any) -> EulerPeriods:
     mode, l2, two_e = _mode(moments, w)
     if mode == "PA":
         return _principal_periods(w)
-    a, b, c = moments if mode == "SAM" else moments[::-1]
-    # In the LAM the roles of A and C swap (reference axis A); the formulas are the same.
-    reference, opposite = c, a
-    scale = math.sqrt((reference - b) * (l2 - two_e * opposite) / (a * b * c))
-    k2 = (b - opposite) * (two_e * reference - l2) / ((reference - b) * (l2 - two_e * opposite))
-    quarter = float(ellipk(k2))
-    n = -reference * (b - opposite) / (opposite * (reference - b))
-    # Π(n, k) = R_F(0, 1 − k², 1) + n/3 · R_J(0, 1 − k², 1, 1 − n) (Carlson 1995).
-    third = float(elliprf(0.0, 1 - k2, 1.0) + n / 3.0 * elliprj(0.0, 1 - k2, 1.0, 1.0 - n))
-    rate = math.sqrt(l2) / reference * (1.0 + (reference - opposite) / opposite * third / quarter)
-    return EulerPeriods(mode, 4.0 * quarter / scale, float(2 * math.pi / rate))
+    rotation, precession = elliptic_periods(moments, l2, two_e, mode)
+    return EulerPeriods(mode, float(rotation), float(precession))
 
 
 def euler_periods_numeric(
