@@ -16,9 +16,10 @@ separate", SIAM J. Numer. Anal. 10, 413). The search minimises it from many rand
    (:func:`refine_state`) on the same coarse grid.
 3. **Fine descent.** The :data:`FINE_STARTS` lowest distinct minima (:func:`distinct`) are
    refined on :data:`FINE_NORMALS` normals and :data:`FINE_EPOCHS` epochs.
-4. **Score.** Each is scored by the χ² of the full EGI fit
-   (:func:`~lightcurve.analysis.egi.fit.fit_egi`, ``normals`` normals, every epoch), the
-   lowest first.
+4. **Score and polish.** Each is scored by the χ² of the full EGI fit
+   (:func:`~lightcurve.analysis.egi.fit.fit_egi`, ``normals`` normals, every epoch); those
+   within :data:`POLISH_WITHIN` of the lowest are refined once more on a finer grid
+   (:data:`POLISH_NORMALS`) and kept when their full χ² falls; the lowest first.
 
 A state is the first epoch's inertial → body attitude in the principal frame of the inertia,
 the body rates there (rad/s) and the ratios ``J₂/J₁``, ``J₃/J₁``
@@ -78,6 +79,13 @@ FINE_STARTS = 6
 FINE_NORMALS = 300
 FINE_EPOCHS = 300
 FINE_STEPS = 20
+#: Minima within this factor of the lowest χ² are polished on :data:`POLISH_NORMALS` normals
+#: and :data:`POLISH_EPOCHS` epochs (at most :data:`POLISH_STEPS` evaluations): the fine
+#: grid's own bias (a few degrees) is then gone, and near-ties are compared alike.
+POLISH_WITHIN = 1.25
+POLISH_NORMALS = 600
+POLISH_EPOCHS = 600
+POLISH_STEPS = 10
 #: Minima whose attitudes agree within this (deg, every epoch, modulo a constant body turn)
 #: are one.
 SAME_DEG = 5.0
@@ -299,16 +307,54 @@ def search_states(
     descended.sort(key=lambda item: item[1])
     histories = [state.attitudes(coarse.seconds) for state, _ in descended]
     chosen = [descended[k][0] for k in distinct(histories)[:FINE_STARTS]]
-    seconds = (obs.mjd - obs.mjd[0]) * 86400.0
-    minima = []
-    for state in chosen:
-        refined, _ = refine_state(obs, state, material)
-        attitudes = refined.attitudes(seconds)
-        fit = fit_egi(FitEpochs.from_observations([obs], [attitudes]), material, normals=normals)
-        minima.append(StateMinimum(refined, fit.chi2, fit, attitudes))
-    minima.sort(key=lambda m: m.chi2)
+    minima = sorted(
+        (
+            scored_minimum(obs, refine_state(obs, state, material)[0], material, normals)
+            for state in chosen
+        ),
+        key=lambda m: m.chi2,
+    )
+    minima = polished(obs, minima, material, normals, minima[0].chi2)
     keep = distinct([m.attitudes for m in minima])
     return [minima[k] for k in keep]
+
+
+def scored_minimum(
+    obs: Observations, state: TorqueFreeState, material: brdf.BRDF, normals: int
+) -> StateMinimum:
+    """A state with the full EGI fit of its attitudes (``normals`` normals, every epoch)."""
+    attitudes = state.attitudes(_seconds(obs))
+    fit = fit_egi(FitEpochs.from_observations([obs], [attitudes]), material, normals=normals)
+    return StateMinimum(state, fit.chi2, fit, attitudes)
+
+
+def polished(
+    obs: Observations,
+    minima: Sequence[StateMinimum],
+    material: brdf.BRDF,
+    normals: int,
+    lowest: float,
+) -> list[StateMinimum]:
+    """The minima within :data:`POLISH_WITHIN` of ``lowest`` refined on the polish grid
+    (module docstring, step 4), each kept where its full χ² falls; lowest χ² first."""
+    out = []
+    for minimum in minima:
+        if minimum.chi2 <= POLISH_WITHIN * lowest:
+            state, _ = refine_state(
+                obs,
+                minimum.state,
+                material,
+                normals=POLISH_NORMALS,
+                epochs=POLISH_EPOCHS,
+                steps=POLISH_STEPS,
+            )
+            minimum = min(minimum, scored_minimum(obs, state, material, normals), key=_chi2)
+        out.append(minimum)
+    return sorted(out, key=_chi2)
+
+
+def _chi2(minimum: StateMinimum) -> float:
+    return minimum.chi2
 
 
 @dataclass(frozen=True)
@@ -399,41 +445,35 @@ def search_hypotheses(
         search_states(obs, material, seed=seed + k, starts=starts, normals=normals)
         for k, obs in enumerate(observations)
     ]
-    seeds = [[m.state] for m in searched[0][:kept]]
-    labels = [f"minimum {k + 1}" for k in range(len(seeds))]
-    best = searched[0][0].state
-    flipped = TorqueFreeState(
-        quaternion_from_matrix(attitude_matrix(best.first) @ mirrors[0]), best.omega, best.ratios
-    )
-    seeds.append([refine_state(observations[0], flipped, material)[0]])
-    labels.append("mirror")
+    best = searched[0][0]
+    flipped = refine_state(observations[0], _mirror(best.state, mirrors[0]), material)[0]
+    mirror = scored_minimum(observations[0], flipped, material, normals)
+    (mirror,) = polished(observations[0], [mirror], material, normals, best.chi2)
+    firsts = [*searched[0][:kept], mirror]
+    labels = [*(f"minimum {k + 1}" for k in range(len(firsts) - 1)), "mirror"]
     hypotheses = []
-    for label, first in zip(labels, seeds, strict=True):
-        states = list(first)
-        attitudes = [states[0].attitudes(_seconds(observations[0]))]
+    for label, first in zip(labels, firsts, strict=True):
+        states, attitudes, fit = [first.state], [first.attitudes], first.fit
         for k in range(1, len(observations)):
             pool = [m.state for m in searched[k]]
             if label == "mirror":  # each file's mirror
-                pool = [
-                    refine_state(
-                        observations[k],
-                        TorqueFreeState(
-                            quaternion_from_matrix(attitude_matrix(s.first) @ mirrors[k]),
-                            s.omega,
-                            s.ratios,
-                        ),
-                        material,
-                    )[0]
-                    for s in pool[:1]
-                ]
+                pool = [refine_state(observations[k], _mirror(pool[0], mirrors[k]), material)[0]]
             state, joined = _joined(observations[: k + 1], attitudes, pool, material)
             states.append(state)
             attitudes.append(joined)
         epochs = FitEpochs.from_observations(list(observations), attitudes)
-        fit = fit_egi(epochs, material, normals=normals)
+        if len(observations) > 1:
+            fit = fit_egi(epochs, material, normals=normals)
         hypotheses.append(StateHypothesis(label, states, attitudes, fit, epochs))
     hypotheses.sort(key=lambda h: h.fit.chi2)
     return hypotheses
+
+
+def _mirror(state: TorqueFreeState, turn: np.ndarray) -> TorqueFreeState:
+    """The mirror hypothesis ``A(t) R_m`` of a state: torque-free with the same rates."""
+    return TorqueFreeState(
+        quaternion_from_matrix(attitude_matrix(state.first) @ turn), state.omega, state.ratios
+    )
 
 
 def _seconds(obs: Observations) -> np.ndarray:
