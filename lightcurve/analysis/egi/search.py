@@ -89,6 +89,8 @@ POLISH_STEPS = 10
 #: Minima whose attitudes agree within this (deg, every epoch, modulo a constant body turn)
 #: are one.
 SAME_DEG = 5.0
+#: Pairings of another file's minimum and frame turn fitted in full (:func:`_joined`).
+JOIN_FINALISTS = 4
 #: Minima of each search carried as hypotheses (besides the best one's mirror).
 KEPT = 3
 #: Typical scales of a state's parameters: log ratios, rotation (rad), rates (rad/s).
@@ -419,8 +421,7 @@ def search_hypotheses(
     ``A(t) R_m`` is again torque-free with the same rates; refined by
     :func:`refine_state`). Every other file joins each hypothesis with the minimum of its
     own, and the turn of its principal frame onto the first file's
-    (:func:`proper_axis_turns`), that fit best together (profile χ² on
-    :data:`FINE_NORMALS` normals and :data:`FINE_EPOCHS` epochs of each file); the EGI of all
+    (:func:`proper_axis_turns`), that fit best together (:func:`_joined`); the EGI of all
     files is then fitted on ``normals`` normals.
 
     Parameters
@@ -458,7 +459,7 @@ def search_hypotheses(
             pool = [m.state for m in searched[k]]
             if label == "mirror":  # each file's mirror
                 pool = [refine_state(observations[k], _mirror(pool[0], mirrors[k]), material)[0]]
-            state, joined = _joined(observations[: k + 1], attitudes, pool, material)
+            state, joined = _joined(observations[: k + 1], attitudes, pool, material, normals)
             states.append(state)
             attitudes.append(joined)
         epochs = FitEpochs.from_observations(list(observations), attitudes)
@@ -485,10 +486,15 @@ def _joined(
     fixed: list[np.ndarray],
     pool: Sequence[TorqueFreeState],
     material: brdf.BRDF,
+    normals: int = FINE_NORMALS,
 ) -> tuple[TorqueFreeState, np.ndarray]:
     """The state of the last file from ``pool`` and the turn of its frame that fit best with
-    the other files' ``fixed`` attitudes (profile χ², fine grid, thinned epochs); its
-    attitudes in the common frame."""
+    the other files' ``fixed`` attitudes; its attitudes in the common frame.
+
+    Every pair is scored by the profile χ² on :data:`FINE_NORMALS` normals and thinned
+    epochs; the :data:`JOIN_FINALISTS` lowest by the full EGI fit (``normals`` normals,
+    every epoch), whose refined normals remove the grid's bias that can hide the right turn.
+    """
     step = max(1, math.ceil(max(len(obs) for obs in observations) / FINE_EPOCHS))
     parts = [Observations(obs.table.iloc[::step], obs.meta) for obs in observations]
     grid = normal_grid(FINE_NORMALS)
@@ -501,5 +507,11 @@ def _joined(
             thinned = [q[::step] for q in [*fixed, turned]]
             epochs = FitEpochs.from_observations(parts, thinned)
             tried.append((float(np.sum(egi_residuals(epochs, material, grid) ** 2)), state, turned))
-    _, state, turned = min(tried, key=lambda item: item[0])
+    tried.sort(key=lambda item: item[0])
+
+    def full_chi2(turned: np.ndarray) -> float:
+        epochs = FitEpochs.from_observations(list(observations), [*fixed, turned])
+        return fit_egi(epochs, material, normals=normals).chi2
+
+    _, state, turned = min(tried[:JOIN_FINALISTS], key=lambda item: full_chi2(item[2]))
     return state, turned

@@ -9,7 +9,7 @@ import pytest
 from benchmarks import shape_recovery
 from filters.attitude import attitude_matrix, quaternion_from_matrix, random_quaternion
 from lightcurve.analysis.egi import FitEpochs, joint, search
-from lightcurve.analysis.egi.fit import EGIFit
+from lightcurve.analysis.egi.fit import EGIFit, fit_egi
 from lightcurve.io.observations import Observations
 
 
@@ -101,3 +101,43 @@ def test_ambiguous_only_when_a_tied_hypothesis_has_another_attitude():
         best, _hypothesis("minimum 2", 91.0, 2.0), _hypothesis("mirror", 92.0, math.inf)
     ).ambiguous
     assert not result(best).ambiguous
+
+
+def test_a_second_file_joins_in_the_frame_that_fits_best():
+    # Two arcs of one box; the second's true state is given in its principal frame turned
+    # by an axis permutation. The join turns it into a frame of the first file's in which
+    # the two arcs' EGI fits at least as well as in the true one (short arcs may allow
+    # another turn: only the fit is asserted).
+    shape = shape_recovery.objects()["box_3x2x1"]
+    material = shape_recovery._true_material()
+    arcs, truths = [], []
+    for seed in (31, 32):
+        arc = shape_recovery.observe(shape, "geo_tumbling", np.random.default_rng(seed), 0.01)
+        arc = Observations(arc.table.iloc[:200].reset_index(drop=True), arc.meta, arc.source)
+        q, w = arc.table[["q1", "q2", "q3", "q4"]].to_numpy(), arc.table[["wx", "wy", "wz"]]
+        truths.append(search.TorqueFreeState(*joint.principal_start(shape, q[0], w.to_numpy()[0])))
+        arcs.append(arc)
+    seconds = [(arc.mjd - arc.mjd[0]) * 86400.0 for arc in arcs]
+    turn = search.proper_axis_turns()[7]
+    moments = np.diag(turn @ np.diag([1.0, *truths[1].ratios]) @ turn.T)
+    moved = search.TorqueFreeState(
+        quaternion_from_matrix(turn @ attitude_matrix(truths[1].first)),
+        turn @ truths[1].omega,
+        moments[1:] / moments[0],
+    )
+    assert (
+        np.max(
+            search.frame_free_angles(truths[1].attitudes(seconds[1]), moved.attitudes(seconds[1]))
+        )
+        < 0.01
+    )
+    first = truths[0].attitudes(seconds[0])
+    state, joined = search._joined(arcs, [first], [moved], material, normals=300)
+    assert state is moved
+
+    def chi2(second):
+        epochs = FitEpochs.from_observations(arcs, [first, second])
+        return fit_egi(epochs, material, normals=300).chi2
+
+    assert chi2(joined) <= 1.05 * chi2(truths[1].attitudes(seconds[1]))
+    assert chi2(joined) < 0.5 * chi2(moved.attitudes(seconds[1]))
