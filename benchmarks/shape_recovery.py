@@ -91,6 +91,7 @@ from lightcurve.analysis.egi import FitEpochs, convex_solid, fit_egi, fit_materi
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import design_matrix
 from lightcurve.analysis.egi.joint import mirror_turns
+from lightcurve.analysis.egi.search import frame_turn
 from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
@@ -208,20 +209,15 @@ def predicted(fit, solid, held_out: Observations, turn: np.ndarray | None = None
 
 
 def frame_alignment(truth: np.ndarray, fitted: np.ndarray) -> np.ndarray:
-    """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``.
-
-    The orthogonal Procrustes solution (Schönemann 1966, "A generalized solution of the
-    orthogonal Procrustes problem", Psychometrika 31, 1) of ``M = Σ A_true A_fitᵀ = U S Vᵀ``:
-    ``R = U diag(1, 1, det(U Vᵀ)) Vᵀ``, a proper rotation.
+    """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``
+    (orthogonal Procrustes, :func:`lightcurve.analysis.egi.search.frame_turn`).
 
     Parameters
     ----------
     truth, fitted : (E, 4) float
         Inertial → body quaternions at the same epochs.
     """
-    matrices = attitude_matrix(truth), attitude_matrix(fitted)
-    u, _, vt = np.linalg.svd(np.einsum("eij,ekj->ik", *matrices))
-    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    return frame_turn(truth, fitted)
 
 
 def aligned_errors(truth: np.ndarray, fitted: np.ndarray, turn: np.ndarray) -> np.ndarray:

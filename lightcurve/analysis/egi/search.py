@@ -56,6 +56,7 @@ __all__ = [
     "TorqueFreeState",
     "distinct",
     "frame_free_angles",
+    "frame_turn",
     "proper_axis_turns",
     "random_states",
     "refine_state",
@@ -229,21 +230,36 @@ def refine_state(
     return unpack(found.x), 2.0 * float(found.cost)
 
 
-def frame_free_angles(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Angles (deg, E) between two attitude histories after the constant body-frame turn
-    ``R`` that best maps the second onto the first (``A₁ ≈ R A₂``, orthogonal Procrustes:
-    Schönemann 1966, "A generalized solution of the orthogonal Procrustes problem",
-    Psychometrika 31, 1).
+def frame_turn(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The constant proper rotation ``R`` (3, 3) minimising ``Σ_e ‖A₁,e − R A₂,e‖²_F``: the
+    turn of the body frame that maps the second attitude history onto the first best.
+
+    The orthogonal Procrustes solution (Schönemann 1966, "A generalized solution of the
+    orthogonal Procrustes problem", Psychometrika 31, 1) of ``M = Σ A₁ A₂ᵀ = U S Vᵀ``:
+    ``R = U diag(1, 1, det(U Vᵀ)) Vᵀ``.
 
     Parameters
     ----------
     first, second : (E, 4) float
         Inertial → body quaternions at the same epochs.
     """
-    a, b = attitude_matrix(first), attitude_matrix(second)
-    u, _, vt = np.linalg.svd(np.einsum("eij,ekj->ik", a, b))
-    turn = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-    trace = np.einsum("eij,ik,ekj->e", a, turn, b)
+    u, _, vt = np.linalg.svd(
+        np.einsum("eij,ekj->ik", attitude_matrix(first), attitude_matrix(second))
+    )
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+
+def frame_free_angles(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Angles (deg, E) between two attitude histories after :func:`frame_turn` (``A₁ ≈
+    R A₂``): the attitudes compared modulo the body frame.
+
+    Parameters
+    ----------
+    first, second : (E, 4) float
+        Inertial → body quaternions at the same epochs.
+    """
+    turn = frame_turn(first, second)
+    trace = np.einsum("eij,ik,ekj->e", attitude_matrix(first), turn, attitude_matrix(second))
     return np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
 
 
