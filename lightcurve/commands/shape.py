@@ -235,6 +235,8 @@ def run(args: argparse.Namespace) -> int:
             "start": args.start or "search",
             "hypotheses": [vars(h) for h in joint.hypotheses],
             "ambiguous": joint.ambiguous,
+            "reduced_chi2": joint.reduced_chi2,
+            "misfit": joint.misfit,
         }
         atomic_write_csv(_attitude_columns(epochs, joint.attitudes), args.out / "attitudes.csv")
     atomic_write_json(args.out / "summary.json", json_ready(summary))
@@ -266,6 +268,12 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"lightcurve shape: warning: attitudes that differ fit alike (χ², angle to the "
             f"best: {chi2}): the attitude, and the shape, are not determined by these data",
+            file=sys.stderr,
+        )
+    if joint is not None and joint.misfit:
+        print(
+            f"lightcurve shape: warning: no state found fits the light curve (reduced χ² "
+            f"{joint.reduced_chi2:.1f}): the attitude and the shape are not an answer",
             file=sys.stderr,
         )
     if not args.quiet:

@@ -121,6 +121,9 @@ _RATIO_SCALE = 0.05
 TIE_DELTA_CHI2 = 9.0
 #: The hypotheses of each inversion round: the estimator's state and its mirror.
 HYPOTHESES = ("direct", "mirror")
+#: Reduced χ² above which the returned fit is a misfit (the magnitude residuals twice the
+#: noise).
+MISFIT_REDUCED_CHI2 = 4.0
 #: Tied hypotheses whose attitudes differ by more than this (deg) make the fit ambiguous.
 DISAGREE_DEG = 5.0
 
@@ -211,13 +214,25 @@ class JointFit:
     hypotheses: list[Hypothesis]
 
     @property
+    def reduced_chi2(self) -> float:
+        """χ² of the returned fit per degree of freedom (epochs less the non-zero areas)."""
+        free = int(np.count_nonzero(self.fit.areas))
+        return self.fit.chi2 / max(len(self.epochs) - free, 1)
+
+    @property
+    def misfit(self) -> bool:
+        """True when the returned fit's reduced χ² exceeds :data:`MISFIT_REDUCED_CHI2`: no
+        hypothesis explains the light curve, and the attitude found is not an answer (on
+        the benchmark's arcs, a search that missed the true state's basin)."""
+        return self.reduced_chi2 > MISFIT_REDUCED_CHI2
+
+    @property
     def ambiguous(self) -> bool:
         """True when another hypothesis's χ² is within :data:`TIE_DELTA_CHI2` reduced χ²
         of the returned one's and its attitude differs by more than :data:`DISAGREE_DEG`:
         the light curve does not choose the attitude."""
         best = self.hypotheses[0].chi2
-        free = int(np.count_nonzero(self.fit.areas))
-        reduced = max(best / max(len(self.epochs) - free, 1), 1.0)
+        reduced = max(self.reduced_chi2, 1.0)
         return any(
             (h.chi2 - best) / reduced < TIE_DELTA_CHI2 and h.angle_to_best_deg > DISAGREE_DEG
             for h in self.hypotheses[1:]

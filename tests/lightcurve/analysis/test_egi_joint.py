@@ -178,6 +178,7 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
     assert sorted(labels) in (["direct", "mirror"], ["minimum 1", "mirror"])
     assert all("angle_to_best_deg" in h for h in summary["joint"]["hypotheses"])
     assert isinstance(summary["joint"]["ambiguous"], bool)
+    assert summary["joint"]["misfit"] == (summary["joint"]["reduced_chi2"] > 4.0)
     assert summary["joint"]["start"] == "search"
     assert (tmp_path / "out" / "attitudes.csv").is_file()
     assert main([str(a) for a in ["shape", path, "--out", tmp_path / "o2", "-q"]]) == 2

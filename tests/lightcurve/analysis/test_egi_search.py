@@ -2,6 +2,7 @@
 projection), its parts, and the joint mode's ambiguity rule."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -101,6 +102,10 @@ def test_ambiguous_only_when_a_tied_hypothesis_has_another_attitude():
         best, _hypothesis("minimum 2", 91.0, 2.0), _hypothesis("mirror", 92.0, math.inf)
     ).ambiguous
     assert not result(best).ambiguous
+    # 90 over 100 epochs less 10 areas: reduced χ² 1, no misfit; 500: a misfit
+    assert result(best).reduced_chi2 == 1.0 and not result(best).misfit
+    poor = joint.JointFit(replace(fit, chi2=500.0), epochs, [], np.ones(2), [], 0, [best])
+    assert poor.misfit
 
 
 def test_a_second_file_joins_in_the_frame_that_fits_best():
