@@ -29,7 +29,7 @@ Scenarios (geometry of :mod:`benchmarks.mismatch_study`: Mount Lemmon, 2024 Jan�
     a few; one pass, or two passes on two nights fitted together;
 ``geo_joint``
     the ``geo_tumbling`` arc with the attitude **unknown**: the joint mode
-    (:func:`lightcurve.joint_shape.fit_joint_shape`, material given, from the ellipsoid).
+    (:func:`lightcurve.joint_shape.fit_joint_shape`, material given, its default search).
     The recovered frame is arbitrary, so the attitudes are compared after the constant
     rotation ``R`` (:func:`frame_alignment`) that best maps the fitted attitude matrices onto
     the true ones over the arc (``A_true ≈ R A_fit``). One arc leaves a second ambiguity,
@@ -100,6 +100,7 @@ from lightcurve.analysis.egi import (
 from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import default_smoothing, design_matrix
 from lightcurve.analysis.egi.joint import mirror_turns
+from lightcurve.analysis.egi.search import frame_turn
 from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
@@ -116,9 +117,12 @@ SCENARIOS = (
     "leo_pass",
     "leo_two_passes",
     "geo_joint",
+    "geo_joint_two_nights",
 )
 #: Scenarios fitting two arcs together.
-TWO_ARCS = ("geo_two_nights", "leo_two_passes")
+TWO_ARCS = ("geo_two_nights", "leo_two_passes", "geo_joint_two_nights")
+#: Scenarios of the joint mode (attitude unknown).
+JOINT = ("geo_joint", "geo_joint_two_nights")
 RATE_DEG_S = (0.3, 1.5)
 NOISE_MAG = (0.02, 0.05)
 NIGHT_S, NIGHT_CADENCE_S = 6 * 3600.0, 30.0
@@ -214,20 +218,15 @@ def predicted(fit, solid, held_out: Observations, turn: np.ndarray | None = None
 
 
 def frame_alignment(truth: np.ndarray, fitted: np.ndarray) -> np.ndarray:
-    """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``.
-
-    The orthogonal Procrustes solution (Schönemann 1966, "A generalized solution of the
-    orthogonal Procrustes problem", Psychometrika 31, 1) of ``M = Σ A_true A_fitᵀ = U S Vᵀ``:
-    ``R = U diag(1, 1, det(U Vᵀ)) Vᵀ``, a proper rotation.
+    """The constant rotation ``R`` (3, 3) minimising ``Σ_e ‖A_true,e − R A_fit,e‖²_F``
+    (orthogonal Procrustes, :func:`lightcurve.analysis.egi.search.frame_turn`).
 
     Parameters
     ----------
     truth, fitted : (E, 4) float
         Inertial → body quaternions at the same epochs.
     """
-    matrices = attitude_matrix(truth), attitude_matrix(fitted)
-    u, _, vt = np.linalg.svd(np.einsum("eij,ekj->ik", *matrices))
-    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    return frame_turn(truth, fitted)
 
 
 def aligned_errors(truth: np.ndarray, fitted: np.ndarray, turn: np.ndarray) -> np.ndarray:
@@ -366,9 +365,22 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     seconds = time.perf_counter() - start
     truth = np.concatenate([truth_attitudes(arc) for arc in arcs])
     errors, turn, alignment = mirror_aligned(truth, joint.attitudes, arcs)
+    # the baseline: the EGI on the true attitudes (what the search must reach, and what the
+    # held-out arc allows with the attitude known)
+    known = fit_egi(
+        FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs]),
+        _true_material(),
+        normals=args.normals,
+    )
+    free = int(np.count_nonzero(joint.fit.areas))
+    reduced = max(joint.fit.chi2 / max(len(joint.epochs) - free, 1), 1.0)
     return {
         "fit_s": seconds,
         "fit_rms_mag": _finite(joint.fit.residual_rms_mag(joint.epochs)),
+        "chi2": joint.fit.chi2,
+        "truth_chi2": known.chi2,
+        "truth_delta_chi2": (known.chi2 - joint.fit.chi2) / reduced,
+        "truth_heldout_ratio": score(shape, known, held_out, noise_mag)["heldout_ratio"],
         "rounds": [vars(r) for r in joint.rounds],
         "hypotheses": [vars(h) for h in joint.hypotheses],
         "ambiguous": joint.ambiguous,
@@ -419,7 +431,7 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
         "epochs": int(sum(len(arc) for arc in arcs)),
         **identifiability(shape, arcs, held_out),
     }
-    if scenario == "geo_joint":
+    if scenario in JOINT:
         fitters = {"joint": lambda: _joint_record(shape, arcs, held_out, noise_mag, args)}
     else:
         epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
@@ -566,6 +578,15 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
                         np.mean((attitude <= 5.0) & (ratio <= 1.5))
                     ),
                     "fit_s_max": float(max(r["fit_s"] for r in rows)),
+                    "ambiguous": int(sum(r["ambiguous"] for r in rows)),
+                    # a confident wrong answer: off by more than 5° and not flagged
+                    "unflagged_off_5deg": int(
+                        sum(not r["ambiguous"] for r in rows if r["attitude_error_deg"] > 5.0)
+                    ),
+                    "truth_heldout_ratio_le_1_5": float(
+                        np.mean([(r["truth_heldout_ratio"] or math.inf) <= 1.5 for r in rows])
+                    ),
+                    "truth_below_fit_by_9": int(sum(r["truth_delta_chi2"] < -9.0 for r in rows)),
                 }
     return out
 

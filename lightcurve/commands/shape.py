@@ -1,14 +1,15 @@
 """The convex shape of an object the library lacks, from its light curves and attitudes:
 the extended Gaussian image (EGI) and Minkowski's reconstruction.
 
-Without --attitude (joint mode, tumbling objects): shape and attitude together, starting
-from an ellipsoid (or --start NAME, a library shape): each round inverts the attitude on the
-current shape, refines each file's torque-free state and inertia ratios against the best
-EGI, and fits the EGI on the refined and on the inversion's own attitudes, keeping the
-better — for the inverted state and for its mirror (the half turn about the normal of the
-Sun–observer plane, with the mirror-image shape: one arc hardly tells them apart), picked
-by χ² and flagged in summary.json (joint.ambiguous) when they tie; the rounds stop when χ²
-falls by less than 1 % (at most --rounds). The joint mode needs the material (--brdf KIND
+Without --attitude (joint mode, tumbling objects): shape and attitude together. The first
+round searches each file's torque-free state from random states, each scored by the best
+EGI for its trajectory (no start shape); the lowest minima and the lowest one's mirror (the
+half turn about the normal of the Sun–observer plane, with the mirror-image shape) are the
+hypotheses, picked by χ², listed in summary.json (joint.hypotheses) and flagged
+(joint.ambiguous, and a warning) when one within Δχ² = 9 has another attitude. Further
+rounds (--rounds, default 1), or all of them with --start NAME (a library shape, or
+"ellipsoid"), invert the attitude on the current shape and refine it against the best EGI;
+they stop when χ² falls by less than 1 %. The joint mode needs the material (--brdf KIND
 --param …); shape.obj and the attitudes (DIR/attitudes.csv) are then in the principal frame
 of the fitted inertia, defined up to the shape's symmetries and the mirror (docs/shape.md).
 
@@ -64,10 +65,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--start",
         metavar="NAME",
-        help="joint mode: library shape to start from (default: ellipsoid)",
+        help="joint mode: start the inversion rounds from this library shape or 'ellipsoid' "
+        "(default: the search, no start shape)",
     )
     parser.add_argument(
-        "--rounds", type=int, default=3, help="joint mode: rounds at most (default: 3)"
+        "--rounds",
+        type=int,
+        default=1,
+        help="joint mode: rounds at most, the search then inversion rounds (default: 1)",
     )
     parser.add_argument(
         "--normals", type=int, default=DEFAULT_NORMALS, metavar="N", help="grid normals"
@@ -253,9 +258,11 @@ def run(args: argparse.Namespace) -> int:
             "rounds": [vars(r) for r in joint.rounds],
             "best_round": joint.best_round,
             "inertia_ratios": joint.inertia_ratios,
-            "start": args.start or "ellipsoid",
+            "start": args.start or "search",
             "hypotheses": [vars(h) for h in joint.hypotheses],
             "ambiguous": joint.ambiguous,
+            "reduced_chi2": joint.reduced_chi2,
+            "misfit": joint.misfit,
         }
         atomic_write_csv(_attitude_columns(epochs, joint.attitudes), args.out / "attitudes.csv")
     atomic_write_json(args.out / "summary.json", json_ready(summary))
@@ -281,10 +288,18 @@ def run(args: argparse.Namespace) -> int:
     )
     plot_egi_fit(epochs, fit, args.out / "fit.png", [Path(p).name for p in args.files])
     if joint is not None and joint.ambiguous:
-        chi2 = ", ".join(f"{h.label} {h.chi2:.1f}" for h in joint.hypotheses)
+        chi2 = ", ".join(
+            f"{h.label} {h.chi2:.1f} ({h.angle_to_best_deg:.0f}°)" for h in joint.hypotheses
+        )
         print(
-            f"lightcurve shape: warning: the attitude and its mirror fit alike (χ² {chi2}): "
-            "the attitude, and the shape's handedness, are not determined by these data",
+            f"lightcurve shape: warning: attitudes that differ fit alike (χ², angle to the "
+            f"best: {chi2}): the attitude, and the shape, are not determined by these data",
+            file=sys.stderr,
+        )
+    if joint is not None and joint.misfit:
+        print(
+            f"lightcurve shape: warning: no state found fits the light curve (reduced χ² "
+            f"{joint.reduced_chi2:.1f}): the attitude and the shape are not an answer",
             file=sys.stderr,
         )
     if not args.quiet:

@@ -1,9 +1,17 @@
 """Shape and attitude together: the joint EGI mode for tumbling objects of unknown attitude.
 
-Each round alternates the two problems that are easy when the other is solved: the attitude
-for a given shape, and the EGI for given attitudes (for satellites with known attitudes:
-Fan, Friedman & Frueh 2019, "Satellite shape recovery from light curves with noise", AMOS
-Conference; Little 1983 for the EGI):
+**The first round: a search that needs no start shape.** Each file's torque-free state is
+searched from many random states, each scored by the best EGI for its trajectory
+(:func:`~lightcurve.analysis.egi.search.search_hypotheses`): the lowest minima of the first
+file and the lowest one's mirror (below) are the round's hypotheses, each with its EGI on
+the full grid; the lowest χ² is returned, and the others are reported
+(:attr:`JointFit.hypotheses`, :attr:`JointFit.ambiguous`).
+
+**Further rounds (inversion rounds)**, or every round when a start shape is given, alternate
+the two problems that are easy when the other is solved: the attitude for a given shape, and
+the EGI for given attitudes (for satellites with known attitudes: Fan, Friedman & Frueh
+2019, "Satellite shape recovery from light curves with noise", AMOS Conference; Little 1983
+for the EGI):
 
 1. **Attitude on the current shape.** An attitude estimator (``estimate_states``; the
    command and :mod:`lightcurve.joint_shape` pass the project's attitude inversion,
@@ -23,16 +31,18 @@ Conference; Little 1983 for the EGI):
    and on the estimator's own attitudes; the lower χ² is kept (the refinement's coarse grid
    can bias the state it finds), and its Minkowski solid becomes the next round's shape.
 
-**Two hypotheses per round: the state and its mirror.** Over an arc whose Sun and observer
+**The mirror.** Over an arc whose Sun and observer
 directions stay in one inertial plane (normal ``m``), the attitudes ``A(t) R_m`` with
 ``R_m = 2 m mᵀ − I`` (a half turn about ``m``) turn the body-frame Sun and observer
 directions into their opposites, and the point-reflected (mirror-image) shape then gives the
 same light curve (the flux depends only on ``n·L``, ``n·V`` and ``L·V``): a one-arc
 ambiguity that only the slow turn of that plane over the arc (a few degrees on a 40-minute
-geostationary arc) breaks. The body rates are the same. Steps 2 and 3 run for both the
-estimator's state and its mirror (:func:`mirror_turns`); the hypotheses are told apart by χ²
-at the end, and reported as tied (:attr:`JointFit.ambiguous`) when the second is within
-:data:`TIE_DELTA_CHI2` (in units of the best one's reduced χ²).
+geostationary arc) breaks. The body rates are the same. In an inversion round steps 2
+and 3 run for both the estimator's state and its mirror (:func:`mirror_turns`). The
+hypotheses are told apart by χ² at the end; the fit is reported as ambiguous
+(:attr:`JointFit.ambiguous`) when another hypothesis is within :data:`TIE_DELTA_CHI2` (in
+units of the best one's reduced χ²) and its attitude differs by more than
+:data:`DISAGREE_DEG`.
 
 Convergence rule: the rounds stop when the best hypothesis's χ² fails to fall by more than
 :data:`CHI2_TOLERANCE` (relative) below the best round's, or after ``rounds``; the round with
@@ -63,6 +73,7 @@ from filters.attitude import (
 from lightcurve.analysis.egi.epochs import FitEpochs
 from lightcurve.analysis.egi.fit import EGIFit, check_epochs, egi_residuals, fit_egi
 from lightcurve.analysis.egi.grid import normal_grid
+from lightcurve.analysis.egi.search import STARTS, frame_free_angles, search_hypotheses
 from lightcurve.analysis.egi.solid import convex_solid
 from lightcurve.io.observations import Observations
 from shapes import FacetModel, Material, primitives
@@ -94,8 +105,8 @@ StateEstimator = Callable[
 START_RADII = (1.5, 1.0, 0.7)
 #: Relative χ² improvement below which the rounds stop.
 CHI2_TOLERANCE = 0.01
-#: Default number of rounds at most.
-ROUNDS = 3
+#: Default number of rounds at most (the search alone).
+ROUNDS = 1
 #: Grid normals and most epochs (evenly thinned) of the variable-projection refinement.
 REFINE_NORMALS = 300
 REFINE_EPOCHS = 600
@@ -108,8 +119,13 @@ _RATIO_SCALE = 0.05
 #: the light curve does not tell them apart (Δχ² = 9: three standard deviations of one
 #: parameter).
 TIE_DELTA_CHI2 = 9.0
-#: The hypotheses of each round: the estimator's state and its mirror.
+#: The hypotheses of each inversion round: the estimator's state and its mirror.
 HYPOTHESES = ("direct", "mirror")
+#: Reduced χ² above which the returned fit is a misfit (the magnitude residuals twice the
+#: noise).
+MISFIT_REDUCED_CHI2 = 4.0
+#: Tied hypotheses whose attitudes differ by more than this (deg) make the fit ambiguous.
+DISAGREE_DEG = 5.0
 
 
 @dataclass(frozen=True)
@@ -119,18 +135,25 @@ class Hypothesis:
     Attributes
     ----------
     label : str
-        ``"direct"`` (the estimator's state) or ``"mirror"`` (:func:`mirror_turns`).
+        The search's ``"minimum k"`` or ``"mirror"``
+        (:func:`~lightcurve.analysis.egi.search.search_hypotheses`), or in an inversion
+        round ``"direct"`` (the estimator's state) or ``"mirror"`` (:func:`mirror_turns`).
     chi2 : float
         χ² of its best EGI.
     residual_rms_mag : float
     round : int
         Round of that fit.
+    angle_to_best_deg : float
+        Largest angle (deg) at a file's last epoch between its attitudes and the returned
+        hypothesis's, after the constant body turn that maps one onto the other best
+        (:func:`~lightcurve.analysis.egi.search.frame_free_angles`).
     """
 
     label: str
     chi2: float
     residual_rms_mag: float
     round: int
+    angle_to_best_deg: float
 
 
 @dataclass(frozen=True)
@@ -191,22 +214,37 @@ class JointFit:
     hypotheses: list[Hypothesis]
 
     @property
+    def reduced_chi2(self) -> float:
+        """χ² of the returned fit per degree of freedom (epochs less the non-zero areas)."""
+        free = int(np.count_nonzero(self.fit.areas))
+        return self.fit.chi2 / max(len(self.epochs) - free, 1)
+
+    @property
+    def misfit(self) -> bool:
+        """True when the returned fit's reduced χ² exceeds :data:`MISFIT_REDUCED_CHI2`: no
+        hypothesis explains the light curve, and the attitude found is not an answer (on
+        the benchmark's arcs, a search that missed the true state's basin)."""
+        return self.reduced_chi2 > MISFIT_REDUCED_CHI2
+
+    @property
     def ambiguous(self) -> bool:
         """True when another hypothesis's χ² is within :data:`TIE_DELTA_CHI2` reduced χ²
-        of the returned one's: the light curve does not choose between them."""
-        if len(self.hypotheses) < 2:
-            return False
-        best, second = self.hypotheses[0].chi2, self.hypotheses[1].chi2
-        free = int(np.count_nonzero(self.fit.areas))
-        reduced = max(best / max(len(self.epochs) - free, 1), 1.0)
-        return (second - best) / reduced < TIE_DELTA_CHI2
+        of the returned one's and its attitude differs by more than :data:`DISAGREE_DEG`:
+        the light curve does not choose the attitude."""
+        best = self.hypotheses[0].chi2
+        reduced = max(self.reduced_chi2, 1.0)
+        return any(
+            (h.chi2 - best) / reduced < TIE_DELTA_CHI2 and h.angle_to_best_deg > DISAGREE_DEG
+            for h in self.hypotheses[1:]
+        )
 
 
 def start_shape(material: brdf.BRDF, name: str | None = None) -> FacetModel:
-    """The starting shape: a library shape ``name``, else the ellipsoid of
-    :data:`START_RADII`, with ``material`` on every facet."""
+    """The starting shape of the inversion rounds: a library shape ``name``, else (None or
+    ``"ellipsoid"``) the ellipsoid of :data:`START_RADII`, with ``material`` on every
+    facet."""
     paint = Material(material.name, material.params)
-    if name is None:
+    if name in (None, "ellipsoid"):
         return primitives.ellipsoid(START_RADII, 3, materials=paint, name="start_ellipsoid")
     from shapes import get_library
 
@@ -345,11 +383,12 @@ def fit_joint(
     observations: Sequence[Observations],
     material: brdf.BRDF,
     *,
-    estimate_states: StateEstimator,
+    estimate_states: StateEstimator | None = None,
     normals: int = 1000,
     start: str | None = None,
     rounds: int = ROUNDS,
     seed: int = 0,
+    starts: int = STARTS,
 ) -> JointFit:
     """Shape and attitude of a tumbling object together (module docstring).
 
@@ -359,16 +398,20 @@ def fit_joint(
         Light curves of one object, each a torque-free arc.
     material : brdf.BRDF
         The material (given; the joint mode does not fit it).
-    estimate_states : StateEstimator
-        The attitude step (module docstring, step 1).
+    estimate_states : StateEstimator, optional
+        The attitude step of the inversion rounds (module docstring); needed for
+        ``rounds > 1`` or a ``start`` shape.
     normals : int
         Grid normals of each round's EGI.
     start : str, optional
-        Library shape to start from (default: the ellipsoid of :data:`START_RADII`).
+        Start the inversion rounds from this shape (a library name, or ``"ellipsoid"``: the
+        ellipsoid of :data:`START_RADII`) instead of the search.
     rounds : int
         Rounds at most.
     seed : int
-        Seed of the attitude step.
+        Seed of the search and of the attitude step.
+    starts : int
+        Screened states the search refines per file.
 
     Returns
     -------
@@ -376,29 +419,24 @@ def fit_joint(
     """
     if rounds < 1:
         raise ValueError(f"the joint fit needs at least one round, got {rounds}")
+    if estimate_states is None and (rounds > 1 or start is not None):
+        raise ValueError("the inversion rounds (rounds > 1 or a start shape) need estimate_states")
     check_epochs(sum(len(obs) for obs in observations), normals)
-    shape = start_shape(material, start)
     turns = mirror_turns(observations)
+    shape = None if start is None else start_shape(material, start)
     history: list[JointRound] = []
     best: JointFit | None = None
     for index in range(rounds):
         began = time.perf_counter()
-        states, ratios, inversion_rms, estimated = estimate_states(observations, shape, seed)
-        candidates = []
-        for label in HYPOTHESES:
-            if label == "mirror":
-                states, estimated = _mirrored(states, estimated, turns)
-            refined, fitted_ratios = refine_states(observations, states, ratios, material)
-            # the EGI on the refined attitudes and on the estimator's own; the lower χ² is kept
-            for attitudes in (refined, estimated):
-                epochs = FitEpochs.from_observations(list(observations), attitudes)
-                fit = fit_egi(epochs, material, normals=normals)
-                candidates.append((fit, epochs, attitudes, fitted_ratios, label))
-        leaders: dict[str, Hypothesis] = {}
-        for fit, epochs, _, _, label in candidates:
-            if label not in leaders or fit.chi2 < leaders[label].chi2:
-                leaders[label] = Hypothesis(label, fit.chi2, fit.residual_rms_mag(epochs), index)
-        ranked = sorted(leaders.values(), key=lambda h: h.chi2)
+        if shape is None:
+            candidates, inversion_rms = _searched(observations, material, turns, seed, starts)
+        else:
+            states, ratios, inversion_rms, estimated = estimate_states(observations, shape, seed)
+            candidates = _inverted(observations, material, turns, states, ratios, estimated)
+        candidates = [
+            (fit_egi(epochs, material, normals=normals) if fit is None else fit, epochs, *rest)
+            for fit, epochs, *rest in candidates
+        ]
         fit, epochs, attitudes, ratios, label = min(candidates, key=lambda item: item[0].chi2)
         history.append(
             JointRound(
@@ -411,9 +449,75 @@ def fit_joint(
         )
         if best is not None and fit.chi2 >= best.fit.chi2 * (1.0 - CHI2_TOLERANCE):
             return replace(best, rounds=history)
+        ranked = _ranked(candidates, index)
         best = JointFit(fit, epochs, attitudes, ratios, history, index, ranked)
         solid = convex_solid(fit.normals, fit.areas)
         body = solid.model.vertices @ solid.principal_axes.T + solid.centroid
         paint = Material(material.name, material.params)
         shape = FacetModel(body, solid.model.faces, materials=paint, name=f"joint_round_{index}")
     return best
+
+
+#: One candidate of a round: its EGI (None: still to fit), epochs, per-file attitudes, the
+#: inertia ratios and the hypothesis's label.
+_Candidate = tuple[EGIFit | None, FitEpochs, list[np.ndarray], np.ndarray, str]
+
+
+def _searched(
+    observations: Sequence[Observations],
+    material: brdf.BRDF,
+    turns: list[np.ndarray],
+    seed: int,
+    starts: int,
+) -> tuple[list[_Candidate], float]:
+    """The search's hypotheses (:func:`~lightcurve.analysis.egi.search.search_hypotheses`)
+    as candidates; no inversion residual (NaN)."""
+    found = search_hypotheses(observations, material, turns, seed=seed, starts=starts)
+    return [(h.fit, h.epochs, h.attitudes, h.states[0].ratios, h.label) for h in found], math.nan
+
+
+def _inverted(
+    observations: Sequence[Observations],
+    material: brdf.BRDF,
+    turns: list[np.ndarray],
+    states: list[tuple[np.ndarray, np.ndarray]],
+    ratios: np.ndarray,
+    estimated: list[np.ndarray],
+) -> list[_Candidate]:
+    """The estimator's state and its mirror, each refined (steps 2 and 3): the refined and
+    the estimator's own attitudes as candidates, their EGI still to fit."""
+    candidates: list[_Candidate] = []
+    for label in HYPOTHESES:
+        if label == "mirror":
+            states, estimated = _mirrored(states, estimated, turns)
+        refined, fitted_ratios = refine_states(observations, states, ratios, material)
+        for attitudes in (refined, estimated):
+            epochs = FitEpochs.from_observations(list(observations), attitudes)
+            candidates.append((None, epochs, attitudes, fitted_ratios, label))
+    return candidates
+
+
+def _ranked(candidates: list, index: int) -> list[Hypothesis]:
+    """Each label's lowest-χ² candidate as a hypothesis, lowest first, with its attitudes'
+    largest angle at a file's last epoch from the lowest one's (modulo a constant body
+    turn)."""
+    leaders: dict[str, tuple] = {}
+    for candidate in candidates:
+        label = candidate[4]
+        if label not in leaders or candidate[0].chi2 < leaders[label][0].chi2:
+            leaders[label] = candidate
+    order = sorted(leaders.values(), key=lambda c: c[0].chi2)
+    lowest = order[0][2]
+    return [
+        Hypothesis(
+            label,
+            fit.chi2,
+            fit.residual_rms_mag(epochs),
+            index,
+            max(
+                float(frame_free_angles(np.concatenate(lowest), np.concatenate(attitudes))[e])
+                for e in np.cumsum([len(q) for q in attitudes]) - 1
+            ),
+        )
+        for fit, epochs, attitudes, _, label in order
+    ]

@@ -15,9 +15,9 @@ from filters.attitude import (
     quaternion_from_matrix,
     rotation_vector_to_quaternion,
 )
-from lightcurve.analysis.egi import FitEpochs, joint, normal_grid
+from lightcurve.analysis.egi import FitEpochs, joint, normal_grid, search
 from lightcurve.analysis.egi.epochs import truth_attitudes
-from lightcurve.analysis.egi.fit import egi_residuals
+from lightcurve.analysis.egi.fit import egi_residuals, fit_egi
 from lightcurve.cli import main
 from lightcurve.io.observations import Observations
 
@@ -104,7 +104,9 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
 
     monkeypatch.setattr(joint, "REFINE_STEPS", 3)
     material = shape_recovery._true_material()
-    fit = joint.fit_joint([arc], material, estimate_states=truth_states, normals=300, rounds=4)
+    fit = joint.fit_joint(
+        [arc], material, estimate_states=truth_states, normals=300, rounds=4, start="ellipsoid"
+    )
     assert calls[0] == "start_ellipsoid" and 2 <= len(fit.rounds) < 4
     assert fit.best_round < len(fit.rounds)
     assert fit.fit.residual_rms_mag(fit.epochs) < 1.3 * 0.03
@@ -114,9 +116,14 @@ def test_the_rounds_stop_when_chi2_stops_falling(tumbling, monkeypatch):
     assert fit.rounds[fit.best_round].hypothesis == fit.hypotheses[0].label
     reduced = max(fit.fit.chi2 / (len(fit.epochs) - np.count_nonzero(fit.fit.areas)), 1.0)
     tied = (fit.hypotheses[1].chi2 - fit.fit.chi2) / reduced < joint.TIE_DELTA_CHI2
+    # the mirror's attitude is another one
+    assert fit.hypotheses[0].angle_to_best_deg == 0.0
+    assert fit.hypotheses[1].angle_to_best_deg > joint.DISAGREE_DEG
     assert fit.ambiguous == tied
     with pytest.raises(ValueError, match="at least one round"):
         joint.fit_joint([arc], material, estimate_states=truth_states, rounds=0)
+    with pytest.raises(ValueError, match="need estimate_states"):
+        joint.fit_joint([arc], material, rounds=2)
     with pytest.raises(ValueError, match="cannot support"):
         joint.fit_joint([arc], material, estimate_states=truth_states, normals=20000)
 
@@ -143,6 +150,20 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
         lambda o, s, seed: ([(principal[0], omega)], ratios, 0.03, [principal]),
     )
     monkeypatch.setattr(joint, "refine_states", lambda o, s, r, m: ([principal], r))
+    truth = search.TorqueFreeState(principal[0], omega, ratios)
+    (turn,) = joint.mirror_turns([arc])
+    mirrored = quaternion_from_matrix(attitude_matrix(principal) @ turn)
+
+    def found(observations, material, mirrors, *, seed, starts):
+        # the search's answer stood in by the truth and its mirror
+        out = []
+        for label, q in (("minimum 1", principal), ("mirror", mirrored)):
+            epochs = FitEpochs.from_observations([arc], [q])
+            fit = fit_egi(epochs, material, normals=200)
+            out.append(search.StateHypothesis(label, [truth], [q], fit, epochs))
+        return sorted(out, key=lambda h: h.fit.chi2)
+
+    monkeypatch.setattr(joint, "search_hypotheses", found)
     material = shape_recovery.MATERIAL
     params = [f"--param={k}={v}" for k, v in material.params.items()]
     argv = ["shape", path, "--out", tmp_path / "out", "--brdf", material.brdf, *params]
@@ -150,9 +171,15 @@ def test_joint_command_writes_method_joint(tumbling, tmp_path, monkeypatch, caps
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["method"] == "joint" and summary["attitude_source"] == "joint"
     assert len(summary["joint"]["rounds"]) >= 1
+    # the search's hypotheses, then an inversion round's
+    assert summary["joint"]["rounds"][0]["hypothesis"] in ("minimum 1", "mirror")
+    assert summary["joint"]["rounds"][0]["inversion_rms_mag"] is None
     labels = [h["label"] for h in summary["joint"]["hypotheses"]]
-    assert sorted(labels) == ["direct", "mirror"]
+    assert sorted(labels) in (["direct", "mirror"], ["minimum 1", "mirror"])
+    assert all("angle_to_best_deg" in h for h in summary["joint"]["hypotheses"])
     assert isinstance(summary["joint"]["ambiguous"], bool)
+    assert summary["joint"]["misfit"] == (summary["joint"]["reduced_chi2"] > 4.0)
+    assert summary["joint"]["start"] == "search"
     assert (tmp_path / "out" / "attitudes.csv").is_file()
     assert main([str(a) for a in ["shape", path, "--out", tmp_path / "o2", "-q"]]) == 2
     assert "give the material" in capsys.readouterr().err
