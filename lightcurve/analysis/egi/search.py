@@ -18,8 +18,9 @@ separate", SIAM J. Numer. Anal. 10, 413). The search minimises it from many rand
    refined on :data:`FINE_NORMALS` normals and :data:`FINE_EPOCHS` epochs.
 4. **Score and polish.** Each is scored by the χ² of the full EGI fit
    (:func:`~lightcurve.analysis.egi.fit.fit_egi`, ``normals`` normals, every epoch); those
-   within :data:`POLISH_WITHIN` of the lowest are refined once more on a finer grid
-   (:data:`POLISH_NORMALS`) and kept when their full χ² falls; the lowest first.
+   within :data:`POLISH_WITHIN` of the lowest (the lowest :data:`POLISH_MOST` of them) are
+   refined once more on a finer grid (:data:`POLISH_NORMALS`) and kept when their full χ²
+   falls; the lowest first.
 
 A state is the first epoch's inertial → body attitude in the principal frame of the inertia,
 the body rates there (rad/s) and the ratios ``J₂/J₁``, ``J₃/J₁``
@@ -84,6 +85,9 @@ FINE_STEPS = 20
 #: and :data:`POLISH_EPOCHS` epochs (at most :data:`POLISH_STEPS` evaluations): the fine
 #: grid's own bias (a few degrees) is then gone, and near-ties are compared alike.
 POLISH_WITHIN = 1.25
+#: Minima polished at most (the lowest ones): bounds a run whose arc leaves many near-ties
+#: (a polish costs about as much as the whole coarse descent of eight starts).
+POLISH_MOST = 2
 POLISH_NORMALS = 600
 POLISH_EPOCHS = 600
 POLISH_STEPS = 10
@@ -353,11 +357,12 @@ def polished(
     normals: int,
     lowest: float,
 ) -> list[StateMinimum]:
-    """The minima within :data:`POLISH_WITHIN` of ``lowest`` refined on the polish grid
-    (module docstring, step 4), each kept where its full χ² falls; lowest χ² first."""
+    """The lowest :data:`POLISH_MOST` minima within :data:`POLISH_WITHIN` of ``lowest``
+    refined on the polish grid (module docstring, step 4), each kept where its full χ²
+    falls; lowest χ² first."""
     out = []
-    for minimum in minima:
-        if minimum.chi2 <= POLISH_WITHIN * lowest:
+    for rank, minimum in enumerate(sorted(minima, key=_chi2)):
+        if rank < POLISH_MOST and minimum.chi2 <= POLISH_WITHIN * lowest:
             state, _ = refine_state(
                 obs,
                 minimum.state,
