@@ -3,7 +3,7 @@
 import numpy as np
 
 from benchmarks import shape_recovery
-from lightcurve.analysis.egi.joint import torque_free_attitudes
+from lightcurve.analysis.egi.search import torque_free_attitudes
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import inverted_states
 from lightcurve.photometry.render import Renderer

@@ -68,12 +68,16 @@ from filters.attitude import (
     attitude_matrix,
     quaternion_from_matrix,
     rotation_vector_to_quaternion,
-    torque_free_trajectory,
 )
 from lightcurve.analysis.egi.epochs import FitEpochs
 from lightcurve.analysis.egi.fit import EGIFit, check_epochs, egi_residuals, fit_egi
 from lightcurve.analysis.egi.grid import normal_grid
-from lightcurve.analysis.egi.search import STARTS, frame_free_angles, search_hypotheses
+from lightcurve.analysis.egi.search import (
+    STARTS,
+    frame_free_angles,
+    search_hypotheses,
+    torque_free_attitudes,
+)
 from lightcurve.analysis.egi.solid import convex_solid
 from lightcurve.io.observations import Observations
 from shapes import FacetModel, Material, primitives
@@ -89,7 +93,6 @@ __all__ = [
     "principal_start",
     "refine_states",
     "start_shape",
-    "torque_free_attitudes",
 ]
 
 #: ``estimate_states(observations, shape, seed) → (states, ratios, rms, attitudes)``: each
@@ -250,26 +253,6 @@ def start_shape(material: brdf.BRDF, name: str | None = None) -> FacetModel:
 
     model = get_library().load(name)
     return FacetModel(model.vertices, model.faces, materials=paint, name=name)
-
-
-def torque_free_attitudes(
-    first: np.ndarray, omega: np.ndarray, ratios: np.ndarray, seconds: np.ndarray
-) -> np.ndarray:
-    """Quaternions (E, 4) of a torque-free rotation in its principal frame.
-
-    Parameters
-    ----------
-    first : (4,) float
-        Inertial → body attitude at ``seconds = 0``.
-    omega : (3,) float
-        Body rates there (rad/s).
-    ratios : (2,) float
-        ``J₂/J₁``, ``J₃/J₁``.
-    seconds : (E,) float
-        Times (s) from the first epoch.
-    """
-    inertia = np.diag([1.0, *ratios])
-    return torque_free_trajectory(first, omega, seconds, inertia)[0]
 
 
 def principal_start(

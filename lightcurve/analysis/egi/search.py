@@ -24,7 +24,7 @@ separate", SIAM J. Numer. Anal. 10, 413). The search minimises it from many rand
 
 A state is the first epoch's inertial → body attitude in the principal frame of the inertia,
 the body rates there (rad/s) and the ratios ``J₂/J₁``, ``J₃/J₁``
-(:func:`lightcurve.analysis.egi.joint.torque_free_attitudes`). Two minima are the same when
+(:func:`torque_free_attitudes`). Two minima are the same when
 their attitudes at every epoch agree within :data:`SAME_DEG` after the best constant turn of
 the body frame (the frame of a shape recovered with its attitude is arbitrary).
 """
@@ -63,6 +63,7 @@ __all__ = [
     "refine_state",
     "search_hypotheses",
     "search_states",
+    "torque_free_attitudes",
 ]
 
 #: Default range of the rates' magnitude (rad/s): 0.3–1.5 °/s.
@@ -102,6 +103,26 @@ KEPT = 3
 _SCALES = (0.05, 0.05, 0.05, 0.05, 0.05, 1e-3, 1e-3, 1e-3)
 
 
+def torque_free_attitudes(
+    first: np.ndarray, omega: np.ndarray, ratios: np.ndarray, seconds: np.ndarray
+) -> np.ndarray:
+    """Quaternions (E, 4) of a torque-free rotation in its principal frame.
+
+    Parameters
+    ----------
+    first : (4,) float
+        Inertial → body attitude at ``seconds = 0``.
+    omega : (3,) float
+        Body rates there (rad/s).
+    ratios : (2,) float
+        ``J₂/J₁``, ``J₃/J₁``.
+    seconds : (E,) float
+        Times (s) from the first epoch.
+    """
+    inertia = np.diag([1.0, *ratios])
+    return torque_free_trajectory(first, omega, seconds, inertia)[0]
+
+
 @dataclass(frozen=True)
 class TorqueFreeState:
     """A torque-free rotation in its principal frame.
@@ -122,8 +143,7 @@ class TorqueFreeState:
 
     def attitudes(self, seconds: np.ndarray) -> np.ndarray:
         """Quaternions (E, 4) at ``seconds`` (s from the first epoch)."""
-        inertia = np.diag([1.0, *self.ratios])
-        return torque_free_trajectory(self.first, self.omega, seconds, inertia)[0]
+        return torque_free_attitudes(self.first, self.omega, self.ratios, seconds)
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ def tumbling():
 def test_torque_free_attitudes_follow_the_simulated_truth(tumbling):
     arc, principal, omega, ratios = tumbling
     seconds = (arc.mjd - arc.mjd[0]) * 86400.0
-    q = joint.torque_free_attitudes(principal[0], omega, ratios, seconds)
+    q = search.torque_free_attitudes(principal[0], omega, ratios, seconds)
     assert np.degrees(np.max(attitude_angle(q, principal))) < 0.05
 
 
@@ -59,7 +59,7 @@ def test_refinement_lowers_the_profile_chi2_to_the_truths(tumbling):
         epochs = FitEpochs.from_observations([arc], [q])
         return float(np.sum(egi_residuals(epochs, material, grid) ** 2))
 
-    before = joint.torque_free_attitudes(start, omega * 1.01, ratios * 1.02, seconds)
+    before = search.torque_free_attitudes(start, omega * 1.01, ratios * 1.02, seconds)
     (after,), _ = joint.refine_states([arc], [(start, omega * 1.01)], ratios * 1.02, material)
     assert chi2(after) < chi2(before)
     assert chi2(after) < 1.2 * chi2(principal)
