@@ -29,6 +29,7 @@ from scipy.optimize import minimize_scalar
 
 from lightcurve.analysis.fourier_design import FourierDesign
 from lightcurve.analysis.period import StackedLightCurves, pab_longitude
+from lightcurve.sky.geometry import phase_angle, phase_angle_bisector
 
 __all__ = ["geometry_change_deg", "geometry_explains_pair", "rotator_bic", "search_penalty"]
 
@@ -103,11 +104,8 @@ def geometry_change_deg(sun: np.ndarray, observer: np.ndarray) -> float:
     sun, observer : (n, 3) float
         Object → Sun and object → observer vectors (any common frame).
     """
-    sun_unit = sun / np.linalg.norm(sun, axis=1)[:, None]
-    observer_unit = observer / np.linalg.norm(observer, axis=1)[:, None]
-    phase = np.arccos(np.clip(np.sum(sun_unit * observer_unit, axis=1), -1.0, 1.0))
-    bisector = sun_unit + observer_unit
-    bisector /= np.linalg.norm(bisector, axis=1)[:, None]
+    phase = phase_angle(sun, observer)
+    bisector = phase_angle_bisector(sun, observer)
     turn = np.arccos(np.clip(bisector @ bisector[0], -1.0, 1.0))
     return float(np.degrees(max(np.ptp(phase), turn.max())))
 
