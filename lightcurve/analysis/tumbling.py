@@ -116,8 +116,10 @@ COMMENSURATE_MAX = 6
 RATIO_SPAN = 8.0
 #: Trial pairs per vectorised block.
 _CHUNK = 32
-#: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency.
-_EXTRA_FIRST = 3
+#: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency: the
+#: dominant term of a tumbler (the second harmonic of its spin about ``L``) is often only
+#: the one-period scan's fourth or fifth deepest minimum.
+_EXTRA_FIRST = 4
 #: Coarse pairs refined.
 _REFINED = 3
 
@@ -465,7 +467,14 @@ def tumbling_search(
             f"the second-period grid over {1 / hi / 3600:.3g}-{1 / lo / 3600:.3g} h is empty "
             "at this time span: widen the period range or use a longer light curve"
         )
-    peaks = [1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak"]
+    # One-period minima whose harmonics pass the Nyquist frequency of the median cadence are
+    # the cadence's aliases of slower terms, not first frequencies of their own.
+    nyquist = 0.5 / float(np.median(np.diff(np.sort(data.times))))
+    peaks = [
+        f
+        for f in (1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak")
+        if max(single_orders) * f < nyquist
+    ]
     first = [f0, f0 / 2, 2 * f0]
     for f in peaks[:_EXTRA_FIRST]:
         first += [f, f / 2]
