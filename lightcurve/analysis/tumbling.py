@@ -29,8 +29,11 @@ The search (:func:`tumbling_search`):
 
 1. the single-period search (:func:`~lightcurve.analysis.period.period_search`, one order)
    gives the dominant frequency f0;
-2. coarse scan: f1 over f0, f0/2, 2 f0 and the next deepest one-period minima (and their
-   halves), f2 over the whole grid of step ``1/(oversample · T)`` within
+2. coarse scan: f1 over f0, f0/2, 2 f0 and the ``_EXTRA_FIRST`` next deepest one-period
+   minima (and their halves), leaving out minima whose harmonics up to the one-period
+   scan's order pass the Nyquist frequency of the median cadence (on a regular cadence Δ,
+   ``k f`` near ``1/Δ`` samples as the slow ``1/Δ − k f``: an alias of a real term, not a
+   first frequency), f2 over the whole grid of step ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
    ``max_coarse_points`` points drawn at random (a fixed seed: irregular sampling has no
    aliases of the regular cadence, which a strided subset would fold into the band);
