@@ -30,10 +30,10 @@ The search (:func:`tumbling_search`):
 1. the single-period search (:func:`~lightcurve.analysis.period.period_search`, one order)
    gives the dominant frequency f0;
 2. coarse scan: f1 over f0, f0/2, 2 f0 and the ``_EXTRA_FIRST`` next deepest one-period
-   minima (and their halves), leaving out minima whose harmonics up to the one-period
-   scan's order pass the Nyquist frequency of the median cadence (on a regular cadence Δ,
-   ``k f`` near ``1/Δ`` samples as the slow ``1/Δ − k f``: an alias of a real term, not a
-   first frequency), f2 over the whole grid of step ``1/(oversample · T)`` within
+   minima (and their halves; each once, to a grid step), leaving out minima whose harmonics
+   up to the one-period scan's order pass the Nyquist frequency of the median cadence (on
+   a regular cadence Δ, ``k f`` near ``1/Δ`` samples as the slow ``1/Δ − k f``: an alias of
+   a real term, not a first frequency), f2 over the whole grid of step ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
    ``max_coarse_points`` points drawn at random (a fixed seed: irregular sampling has no
    aliases of the regular cadence, which a strided subset would fold into the band);
@@ -478,10 +478,12 @@ def tumbling_search(
         for f in (1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak")
         if max(single_orders) * f < nyquist
     ]
-    first = [f0, f0 / 2, 2 * f0]
-    for f in peaks[:_EXTRA_FIRST]:
-        first += [f, f / 2]
-    first = np.array([f for f in first if f_min <= f <= f_max])
+    kept: list[float] = []
+    for f in [f0, f0 / 2, 2 * f0, *(g for p in peaks[:_EXTRA_FIRST] for g in (p, p / 2))]:
+        # A first frequency within a grid step of one already kept would repeat its row.
+        if f_min <= f <= f_max and all(abs(f - g) > step for g in kept):
+            kept.append(f)
+    first = np.array(kept)
     coarse = _TwoPeriodFit(data, trend_degree, _subset(n, fraction))
     scan = np.empty((len(first), len(second)))
     allowed = np.zeros(scan.shape, bool)
