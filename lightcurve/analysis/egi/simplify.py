@@ -175,7 +175,7 @@ def choose_faces(fit: EGIFit, epochs: FitEpochs, faces: str = "auto") -> EGIFit:
     object: :func:`~lightcurve.analysis.egi.fit.default_smoothing` gives no weight) and
     keeps the fit of a stabilised object as it is: the simplification refits without the
     smoothing term, and on one band of normals that lets areas grow unseen (measured:
-    stabilised nights' fits reached 390–1 900 m² for 18–22 m² bodies).
+    stabilised nights' fits reached 387–1 903 m² for 18–22 m² bodies).
     """
     if faces not in FACES:
         raise ValueError(f"faces must be one of {', '.join(FACES)}, got {faces!r}")
