@@ -57,6 +57,9 @@ def test_shape_writes_the_documented_outputs_and_shapes_add_takes_them(box_file,
     assert summary["axis_ratios"]["a/b"] == pytest.approx(1.5, rel=0.05)
     assert summary["axis_ratios"]["b/c"] == pytest.approx(2.0, rel=0.05)
     assert summary["axis_ratio_sigma"]["a/b"] > 0
+    # random attitudes see every side: the fewest faces the data need, the box's six
+    assert summary["faces"]["mode"] == "auto"
+    assert summary["faces"]["kept_facets"] == 6 < summary["faces"]["fitted_facets"]
     for name in ("shape.obj", "fit.png", "egi.csv", "fit.csv"):
         assert (out / name).is_file()
     assert "principal frame" in (out / "shape.obj").read_text()
