@@ -8,22 +8,26 @@ few flat faces, so among EGIs that fit, the one with the fewest facets is prefer
 (Occam's razor, in the form of Schwarz's Bayesian information criterion: Schwarz 1978,
 "Estimating the dimension of a model", Ann. Stat. 6, 461).
 
-Starting from the non-zero facets of a fit (:func:`~lightcurve.analysis.egi.fit.fit_egi`),
-each step tries
+The start is the set of lowest BIC among the non-zero facets of a fit
+(:func:`~lightcurve.analysis.egi.fit.fit_egi`) and those facets clustered by single linkage
+within each of :data:`CLUSTER_ANGLES_DEG` (each cluster one facet at its area-weighted mean
+normal). Each step then tries, cheapest first,
 
-* **merges** of two facets within :data:`MERGE_ANGLE_DEG` of each other — one facet at their
-  area-weighted mean normal with their summed area — and
-* **removals** of one facet, its flux left to the others,
+* **removals** of each of the :data:`CANDIDATES_PER_KIND` smallest facets, its flux left to
+  the others, and
+* **merges** of each of as many nearest pairs within :data:`MERGE_ANGLE_DEG` — one facet at
+  their area-weighted mean normal,
 
 each followed by the non-negative refit of the areas over the remaining normals under the
 closure rows (:func:`~lightcurve.analysis.egi.fit.solve_areas`; areas the refit sets to 0
-are removed too). A change that removes ``k`` facets is accepted when its χ² rises by less
-than the ``3 k ln E`` the BIC credits for ``3k`` fewer parameters (two angles and one area
-per facet, ``E`` epochs). Candidates are first scored on the normals as they stand (cheap);
-when none passes, the best :data:`POLISHED_CANDIDATES` are polished
-(:func:`~lightcurve.analysis.egi.fit.polish`: every facet's normal and area refined) and
-scored again. The best change is kept, the facets polished, and the search repeats until no
-change passes.
+are removed too). The BIC is ``χ² + 3 K ln E`` for ``K`` facets of three parameters (two
+angles of the normal, one area) and ``E`` epochs: a change that removes ``k`` facets passes
+when its χ² rises by less than ``3 k ln E``. Candidates are first scored on their normals
+as they stand; when none passes, the best :data:`POLISHED_CANDIDATES` are polished
+(:func:`~lightcurve.analysis.egi.fit.polish`: every facet's normal and area) and scored
+again. The change of lowest BIC is kept and its facets polished, until no change lowers the
+BIC. The polish fits magnitudes without the closure rows, so a polished set is kept only
+when its closed refit fits better than the set as it stood.
 """
 
 from __future__ import annotations
@@ -46,8 +50,8 @@ from lightcurve.analysis.egi.fit import (
 
 __all__ = ["FACES", "MERGE_ANGLE_DEG", "choose_faces", "fewest_faces"]
 
-#: Largest angle between two facets tried as one (deg): a face split into two facets tilted
-#: by ~25° each way (measured on one-arc fits of a box) is still a candidate.
+#: Largest angle between two facets tried as one (deg): one-arc fits of a box split a face
+#: into two facets up to 61° apart (measured), which must still be a candidate.
 MERGE_ANGLE_DEG = 75.0
 #: Candidates of each kind (removals, merges) scored per step, cheapest first.
 CANDIDATES_PER_KIND = 24
