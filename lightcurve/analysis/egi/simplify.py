@@ -92,7 +92,10 @@ def _candidates(
     :data:`CANDIDATES_PER_KIND` smallest facets and the merges of as many nearest pairs
     within :data:`MERGE_ANGLE_DEG`."""
     design = design_matrix(normals, epochs, material)
+    rank = np.argsort(np.argsort(areas))
     out = []
+    for count in {len(areas) // 4, len(areas) // 2} - {0, 1}:  # many small facets at once
+        out.append(_refit(normals[rank >= count], epochs, material, design[:, rank >= count]))
     for k in np.argsort(areas)[:CANDIDATES_PER_KIND]:
         keep = np.arange(len(areas)) != k
         out.append(_refit(normals[keep], epochs, material, design[:, keep]))
@@ -152,14 +155,23 @@ def fewest_faces(fit: EGIFit, epochs: FitEpochs) -> EGIFit:
     active = fit.areas > 0
     start = (fit.normals[active], fit.areas[active], fit.chi2)
     current = min([start, *_starts(*start[:2], epochs, material)], key=bic)
+    polished = False
     while len(current[1]) > MIN_FACETS:
+        best = min(_candidates(*current[:2], epochs, material), key=bic)
+        if bic(best) < bic(current):
+            current, polished = best, False
+            continue
+        if not polished:  # stuck on the normals as they stand: polish them, then look again
+            current, polished = _polished(current, epochs, material), True
+            continue
         scored = sorted(_candidates(*current[:2], epochs, material), key=bic)
-        if bic(scored[0]) >= bic(current):
-            scored = [_polished(s, epochs, material) for s in scored[:POLISHED_CANDIDATES]]
-        best = min(scored, key=bic)
+        best = min(
+            (_polished(found, epochs, material) for found in scored[:POLISHED_CANDIDATES]),
+            key=bic,
+        )
         if bic(best) >= bic(current):
             break
-        current = _polished(best, epochs, material)
+        current = best
     if current is start:
         return fit
     normals, areas, _ = current
