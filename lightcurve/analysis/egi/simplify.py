@@ -14,7 +14,7 @@ within each of :data:`CLUSTER_ANGLES_DEG` (each cluster one facet at its area-we
 normal). Each step then tries, cheapest first,
 
 * **removals** of each of the :data:`CANDIDATES_PER_KIND` smallest facets, its flux left to
-  the others, and
+  the others, and of the smallest quarter and half of the facets at once, and
 * **merges** of each of as many nearest pairs within :data:`MERGE_ANGLE_DEG` — one facet at
   their area-weighted mean normal,
 
@@ -22,12 +22,13 @@ each followed by the non-negative refit of the areas over the remaining normals 
 closure rows (:func:`~lightcurve.analysis.egi.fit.solve_areas`; areas the refit sets to 0
 are removed too). The BIC is ``χ² + 3 K ln E`` for ``K`` facets of three parameters (two
 angles of the normal, one area) and ``E`` epochs: a change that removes ``k`` facets passes
-when its χ² rises by less than ``3 k ln E``. Candidates are first scored on their normals
-as they stand; when none passes, the best :data:`POLISHED_CANDIDATES` are polished
-(:func:`~lightcurve.analysis.egi.fit.polish`: every facet's normal and area) and scored
-again. The change of lowest BIC is kept and its facets polished, until no change lowers the
-BIC. The polish fits magnitudes without the closure rows, so a polished set is kept only
-when its closed refit fits better than the set as it stood.
+when its χ² rises by less than ``3 k ln E``. The candidate of lowest BIC is kept when it
+lowers the BIC. When none does, the facets are polished
+(:func:`~lightcurve.analysis.egi.fit.polish`: every facet's normal and area) and the
+candidates tried again; when still none does, the best :data:`POLISHED_CANDIDATES` are
+polished and scored, and the search stops when none of them lowers the BIC either. The
+polish fits magnitudes without the closure rows, so a polished set is kept only when its
+closed refit fits better than the set as it stood.
 """
 
 from __future__ import annotations
