@@ -75,6 +75,18 @@ def test_shape_writes_the_documented_outputs_and_shapes_add_takes_them(box_file,
     assert np.allclose(model.center_of_mass, 0.0, atol=1e-6)
 
 
+def test_faces_all_keeps_every_fitted_facet(box_file, tmp_path, capsys):
+    out = tmp_path / "fit"
+    code, _, err = _run(
+        capsys, "shape", box_file, "--out", out, "--attitude", "truth", "--brdf", "lambert",
+        "--param", "rd=0.3", "--normals", "300", "--bootstrap", "0", "--faces", "all",
+    )  # fmt: skip
+    assert code == 0, err
+    faces = json.loads((out / "summary.json").read_text())["faces"]
+    assert faces["mode"] == "all"
+    assert faces["kept_facets"] == faces["fitted_facets"] > 6
+
+
 def test_fitted_material_is_a_registry_model(box_file, tmp_path, capsys):
     out = tmp_path / "fit"
     code, _, err = _run(
