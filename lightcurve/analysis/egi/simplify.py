@@ -89,13 +89,13 @@ def _refit(
 def _candidates(
     normals: np.ndarray, areas: np.ndarray, epochs: FitEpochs, material: brdf.BRDF
 ) -> list[Facets]:
-    """The facet sets one step away, refitted: the removals of the
-    :data:`CANDIDATES_PER_KIND` smallest facets and the merges of as many nearest pairs
-    within :data:`MERGE_ANGLE_DEG`."""
+    """The facet sets one step away, refitted: the removals of each of the
+    :data:`CANDIDATES_PER_KIND` smallest facets and of the smallest quarter and half at
+    once, and the merges of as many nearest pairs within :data:`MERGE_ANGLE_DEG`."""
     design = design_matrix(normals, epochs, material)
     rank = np.argsort(np.argsort(areas))
     out = []
-    for count in {len(areas) // 4, len(areas) // 2} - {0, 1}:  # many small facets at once
+    for count in sorted({len(areas) // 4, len(areas) // 2} - {0, 1}):
         out.append(_refit(normals[rank >= count], epochs, material, design[:, rank >= count]))
     for k in np.argsort(areas)[:CANDIDATES_PER_KIND]:
         keep = np.arange(len(areas)) != k
@@ -120,7 +120,9 @@ def _polished(found: Facets, epochs: FitEpochs, material: brdf.BRDF) -> Facets:
     return min(_refit(moved, epochs, material), found, key=lambda facets: facets[2])
 
 
-def _starts(normals: np.ndarray, areas: np.ndarray, epochs, material) -> list[Facets]:
+def _starts(
+    normals: np.ndarray, areas: np.ndarray, epochs: FitEpochs, material: brdf.BRDF
+) -> list[Facets]:
     """The facets' clusters within each of :data:`CLUSTER_ANGLES_DEG`, refitted."""
     out = []
     for angle in CLUSTER_ANGLES_DEG:
@@ -158,14 +160,13 @@ def fewest_faces(fit: EGIFit, epochs: FitEpochs) -> EGIFit:
     current = min([start, *_starts(*start[:2], epochs, material)], key=bic)
     polished = False
     while len(current[1]) > MIN_FACETS:
-        best = min(_candidates(*current[:2], epochs, material), key=bic)
-        if bic(best) < bic(current):
-            current, polished = best, False
+        scored = sorted(_candidates(*current[:2], epochs, material), key=bic)
+        if bic(scored[0]) < bic(current):
+            current, polished = scored[0], False
             continue
         if not polished:  # stuck on the normals as they stand: polish them, then look again
             current, polished = _polished(current, epochs, material), True
             continue
-        scored = sorted(_candidates(*current[:2], epochs, material), key=bic)
         best = min(
             (_polished(found, epochs, material) for found in scored[:POLISHED_CANDIDATES]),
             key=bic,
