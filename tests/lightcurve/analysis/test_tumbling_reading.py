@@ -1,0 +1,102 @@
+"""Reading a tumbler's pair by a convex facet model under torque-free motion."""
+
+import numpy as np
+import pytest
+
+from benchmarks.glint_power import fixed_geometry_curve
+from benchmarks.tumbling_periods import egg
+from filters.attitude import attitude_matrix
+from filters.attitude.torque_free_periods import euler_periods
+from lightcurve.analysis.tumbling_reading import (
+    ConvexDecision,
+    ConvexProfile,
+    ReadingFit,
+    convex_reading,
+    motions_with_ratio,
+    reading_hypotheses,
+)
+from lightcurve.photometry.simulate import GaussianNoise, simulate
+
+
+def test_readings_are_bases_of_the_pair_within_the_period_ratio_bounds():
+    pair = np.array([1 / 98.4, 1 / 82.5])
+    readings = reading_hypotheses(pair)
+    assert len({(round(r.f_phi, 12), round(r.f_psi, 12), r.mode) for r in readings}) == len(
+        readings
+    )
+    for reading in readings:
+        assert np.allclose(reading.basis @ pair, [reading.f_phi, reading.f_psi], rtol=1e-12)
+        assert abs(round(np.linalg.det(reading.basis))) == 1
+        bound = 0.5 if reading.mode == "SAM" else 4.0
+        assert 0 < reading.f_psi < bound * reading.f_phi
+    # The long-axis reading (f_φ, f_φ + f_ψ) → (f_φ, f_ψ) and its short-axis twin are there.
+    f_phi, f_psi = 1 / 98.4, 1 / 82.5 - 1 / 98.4
+    assert any(
+        np.allclose([r.f_phi, r.f_psi], [f_phi, f_psi]) and r.mode == "LAM" for r in readings
+    )
+    assert any(np.allclose([r.f_phi, r.f_psi], [2 * f_phi + f_psi, f_phi]) for r in readings)
+
+
+@pytest.mark.parametrize("mode", ["SAM", "LAM"])
+def test_motions_have_the_asked_period_ratio(mode):
+    ratio = 0.3 if mode == "SAM" else 0.8
+    motions = motions_with_ratio(ratio, mode, grid=4)
+    assert motions
+    assert all(m.mode == mode and abs(m.ratio / ratio - 1) < 1e-5 for m in motions)
+
+
+def _tumbler(omega, seed):
+    """A simulated egg (not a facet model on any grid, Lambertian: not the fit's law)
+    tumbling for 40 min under a fixed geometry."""
+    t = np.arange(0.0, 2400.0, 4.0)
+    geometry = fixed_geometry_curve(t, np.zeros(len(t)), 0.02, "geometry")
+    inertia = np.diag([1.0, 2.0, 2.6])
+    q0 = np.array([0.1, 0.2, 0.3, 0.927]) / np.linalg.norm([0.1, 0.2, 0.3, 0.927])
+    body = egg(np.array([1.0, 1.6, 3.0]), np.array([1.5, 1.4]))
+    sim = simulate(
+        geometry,
+        body,
+        q0=q0,
+        omega0=omega,
+        inertia=inertia,
+        noise=GaussianNoise(0.02),
+        shadows="none",
+        seed=seed,
+    )
+    return sim, euler_periods(inertia, omega)
+
+
+@pytest.mark.parametrize(
+    ("omega", "mode"), [((0.02, 0.0, 0.05), "SAM"), ((0.06, 0.03, 0.02), "LAM")]
+)
+def test_true_reading_has_the_least_chi2(omega, mode):
+    sim, truth = _tumbler(np.array(omega), seed=2)
+    assert truth.mode == mode
+    pair = np.array([1 / truth.precession_period_s, 1 / truth.rotation_period_s])
+    profile = ConvexProfile(sim, normals=100, epochs=150)
+    # The simulator's own attitudes: the floor the law and the grid leave.
+    step = int(np.ceil(len(sim) / 150))
+    floor = profile.chi2(attitude_matrix(sim.truth[::step, :4]))
+    fits = convex_reading(sim, reading_hypotheses(pair), normals=100, epochs=150, trials=100)
+    best = fits[0]
+    assert np.allclose([best.reading.f_phi, best.reading.f_psi], pair, rtol=1e-9)
+    assert best.reading.mode == mode
+    assert best.chi2 < 2.0 * floor
+    assert fits[1].chi2 > best.chi2 + 9.0 * max(best.chi2 / 50, 1.0)
+
+
+def test_decision_periods_carry_the_basis_errors():
+    pair = np.array([1 / 98.4, 1 / 82.5])
+    f_phi, f_psi = pair[0], pair[1] - pair[0]
+    lam = next(
+        r
+        for r in reading_hypotheses(pair)
+        if r.mode == "LAM" and np.allclose([r.f_phi, r.f_psi], [f_phi, f_psi])
+    )
+    fit = ReadingFit(lam, 100.0, None, 0.0, np.eye(3))
+    decision = ConvexDecision([fit], 20.0, False)
+    periods = decision.periods([1e-6, 2e-6])
+    assert decision.best is fit and periods["mode"] == "LAM"
+    assert periods["precession_period_h"]["period_h"] == pytest.approx(1 / lam.f_phi / 3600)
+    sigma = np.sqrt(lam.basis[1] ** 2 @ np.array([1e-6, 2e-6]) ** 2)
+    assert periods["rotation_period_h"]["sigma_h"] == pytest.approx(sigma / lam.f_psi**2 / 3600)
