@@ -28,14 +28,6 @@ def test_columns_absorb_constant_rotations_on_either_side(degree, functions):
     assert np.linalg.matrix_rank(np.concatenate([columns, turned], axis=1)) == functions
 
 
-@pytest.mark.parametrize("mode", ["SAM", "LAM"])
-def test_motions_have_the_asked_period_ratio(mode):
-    ratio = 0.3 if mode == "SAM" else 0.8
-    motions = motions_with_ratio(ratio, mode, grid=4)
-    assert motions
-    assert all(m.mode == mode and abs(m.ratio / ratio - 1) < 1e-5 for m in motions)
-
-
 def test_true_motion_fits_an_integrated_tumbler_to_the_noise():
     """A brightness quadratic in the body-frame Sun and observer directions of an integrated
     short-axis tumbler (within the model's degree): the closed-form motion at the true

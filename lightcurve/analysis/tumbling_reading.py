@@ -79,7 +79,7 @@ __all__ = [
 ]
 
 #: Largest ratio C/A of the principal moments of a reading (a LAM's ``f_ψ/f_φ`` bound).
-MAX_MOMENT_RATIO = 5.0
+MAX_MOMENT_RATIO = 8.0
 #: The convex-inversion scattering law (Lommel–Seeliger + 0.1 Lambert, phase function 1).
 CONVEX_LAW = brdf.get("lommel-seeliger", w=4 * math.pi, c=0.1, a=0.0, d=0.1, k=0.0)
 #: Normals and epochs of the profile, random trials per reading and trials refined.
