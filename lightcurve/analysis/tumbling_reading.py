@@ -94,12 +94,13 @@ REFINE_STEPS = 15
 QUICK_NORMALS = 100
 QUICK_EPOCHS = 150
 QUICK_TRIALS = 100
+QUICK_REFINED = 2
 FINALISTS = 3
 FINAL_STEPS = 20
 #: Δχ² (over the reduced χ²) below which the two lowest readings are not told apart.
 AMBIGUOUS_DELTA_CHI2 = 9.0
 #: Moment lattice per axis and trial values of ``d`` across a mode's interval.
-MOMENT_GRID = 5
+MOMENT_GRID = 6
 _ENERGY_STEPS = 60
 
 
@@ -527,7 +528,7 @@ def decide_reading(
         normals=QUICK_NORMALS,
         epochs=QUICK_EPOCHS,
         trials=QUICK_TRIALS,
-        refined=1,
+        refined=QUICK_REFINED,
     )
     finalists = [fit for fit in quick[:FINALISTS] if fit.motion is not None]
     if len(finalists) < 2:

@@ -7,6 +7,7 @@ from benchmarks.tumbling_periods import simulate_run
 from filters.attitude import attitude_matrix
 from filters.attitude.torque_free_periods import euler_periods
 from lightcurve.analysis.tumbling_reading import (
+    MAX_MOMENT_RATIO,
     SCREEN_EPOCHS,
     ConvexDecision,
     ConvexProfile,
@@ -26,7 +27,7 @@ def test_readings_are_bases_of_the_pair_within_the_period_ratio_bounds():
     for reading in readings:
         assert np.allclose(reading.basis @ pair, [reading.f_phi, reading.f_psi], rtol=1e-12)
         assert abs(round(np.linalg.det(reading.basis))) == 1
-        bound = 0.5 if reading.mode == "SAM" else 4.0
+        bound = 0.5 if reading.mode == "SAM" else MAX_MOMENT_RATIO - 1.0
         assert 0 < reading.f_psi < bound * reading.f_phi
     # The long-axis reading (f_φ, f_φ + f_ψ) → (f_φ, f_ψ) and its short-axis twin are there.
     f_phi, f_psi = 1 / 98.4, 1 / 82.5 - 1 / 98.4
