@@ -64,10 +64,8 @@ of φ + ψ, i.e. ``f_s = f_φ − f_ψ`` in a SAM (ψ turns backwards relative t
 LAM mostly ``P_φ < P_ψ`` (both checked over random states in the tests), which splits the
 two readings at ``f_s = 2x`` (:func:`euler_reading`). This is a heuristic whose success
 rate the benchmark measures, not a theorem; ``periods_h`` and ``combinations`` are the
-model-free result. For a tumbler (``tumbling`` true) the readings of the pair are then
-fitted by a convex facet model under torque-free motion
-(:func:`~lightcurve.analysis.tumbling_reading.decide_reading`), whose best reading
-replaces the rule's unless the two best are within ``AMBIGUOUS_DELTA_CHI2``.
+model-free result. A tumbler's pair is read by a convex facet model instead
+(:mod:`~lightcurve.analysis.tumbling_reading`) unless its two best readings are close.
 """
 
 from __future__ import annotations
@@ -202,17 +200,11 @@ class TumblingResult:
     convex: ConvexDecision | None = None
 
     @property
-    def reading_method(self) -> str:
-        """``"convex"`` when the convex model decided the reading, else ``"rule"``."""
-        return "convex" if self.convex is not None and not self.convex.ambiguous else "rule"
-
-    @property
     def reading(self) -> dict:
         """The convex model's reading of the two periods, else :func:`euler_reading`."""
-        if self.reading_method == "convex":
-            frequencies = 1.0 / (self.periods_h * 3600.0)
-            return self.convex.periods(self.sigmas_h * 3600.0 * frequencies**2)
-        return euler_reading(self.periods_h, self.sigmas_h, self.combinations)
+        if self.convex is not None and not self.convex.ambiguous:
+            return {**self.convex.periods(self.periods_h, self.sigmas_h), "method": "convex"}
+        return {**euler_reading(self.periods_h, self.sigmas_h, self.combinations), "method": "rule"}
 
     def summary(self) -> dict:
         """JSON-ready: the keys documented in ``docs/formats.md``."""
@@ -227,7 +219,7 @@ class TumblingResult:
             "precession_period_h": reading["precession_period_h"],
             "rotation_period_h": reading["rotation_period_h"],
             "mode": reading["mode"],
-            "reading_method": self.reading_method,
+            "reading_method": reading["method"],
             "reading_delta_chi2": None if self.convex is None else self.convex.delta_chi2,
             "combinations": self.combinations,
             "two_period_order": self.order,
@@ -445,8 +437,7 @@ def tumbling_search(
     trend_degree : int
         Degree of each light curve's polynomial in time, in both series (module docstring).
     model_reading : bool
-        Read a tumbler's pair by the convex model
-        (:func:`~lightcurve.analysis.tumbling_reading.decide_reading`).
+        Read a tumbler's pair by the convex model (:func:`decide_reading`).
     progress : callable, optional
         ``progress(rows_done, rows_total)`` over the coarse scan's rows.
 
@@ -603,6 +594,7 @@ def tumbling_search(
         scan_first_h=1.0 / first / 3600.0,
         scan_chi2=np.where(allowed, scan, np.inf),
     )
-    if result.tumbling and model_reading:
-        result.convex = decide_reading(observations, pair)
+    result.convex = (
+        decide_reading(observations, pair) if result.tumbling and model_reading else None
+    )
     return result

@@ -476,13 +476,19 @@ class ConvexDecision:
         """The reading of least χ²."""
         return self.fits[0]
 
-    def periods(self, pair_sigma: Sequence[float]) -> dict:
-        """The best reading's periods (h) with 1σ from those of the pair's frequencies
-        ``pair_sigma`` (Hz; ``σ_f² = Σ_j T_ij² σ_j²``, their correlation ignored) and
-        its mode."""
+    def periods(self, periods_h: Sequence[float], sigmas_h: Sequence[float]) -> dict:
+        """The best reading's periods (h) with 1σ, and its mode.
+
+        Parameters
+        ----------
+        periods_h, sigmas_h : (2,) float
+            The fitted pair (h) in the order of the readings' bases, and its 1σ; the
+            frequencies' ``σ_f² = Σ_j T_ij² σ_j²`` (their correlation ignored).
+        """
         reading = self.best.reading
         frequencies = np.array([reading.f_phi, reading.f_psi])
-        sigma = np.sqrt(reading.basis**2 @ np.asarray(pair_sigma, float) ** 2)
+        pair_sigma = np.asarray(sigmas_h, float) / np.asarray(periods_h, float) ** 2 / 3600.0
+        sigma = np.sqrt(reading.basis**2 @ pair_sigma**2)
         periods = [
             {"period_h": float(1.0 / f / 3600.0), "sigma_h": float(s / f**2 / 3600.0)}
             for f, s in zip(frequencies, sigma, strict=True)

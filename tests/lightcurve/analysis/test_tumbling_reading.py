@@ -64,7 +64,8 @@ def test_true_reading_wins_on_a_simulated_tumbler(run, mode):
 
 
 def test_decision_periods_carry_the_basis_errors():
-    pair = np.array([1 / 98.4, 1 / 82.5])
+    periods_h, sigmas_h = np.array([98.4, 82.5]) / 3600, np.array([0.01, 0.02]) / 3600
+    pair = 1 / (periods_h * 3600)
     f_phi, f_psi = pair[0], pair[1] - pair[0]
     lam = next(
         r
@@ -73,8 +74,10 @@ def test_decision_periods_carry_the_basis_errors():
     )
     fit = ReadingFit(lam, 100.0, None, 0.0, np.eye(3))
     decision = ConvexDecision([fit], 20.0, False)
-    periods = decision.periods([1e-6, 2e-6])
+    periods = decision.periods(periods_h, sigmas_h)
     assert decision.best is fit and periods["mode"] == "LAM"
-    assert periods["precession_period_h"]["period_h"] == pytest.approx(1 / lam.f_phi / 3600)
-    sigma = np.sqrt(lam.basis[1] ** 2 @ np.array([1e-6, 2e-6]) ** 2)
-    assert periods["rotation_period_h"]["sigma_h"] == pytest.approx(sigma / lam.f_psi**2 / 3600)
+    assert periods["precession_period_h"]["period_h"] == pytest.approx(98.4 / 3600)
+    assert periods["precession_period_h"]["sigma_h"] == pytest.approx(0.01 / 3600)
+    # f_ψ = f₂ − f₁: σ² = σ₁² + σ₂² in frequency.
+    sigma_f = np.hypot(0.01 / 98.4**2, 0.02 / 82.5**2)
+    assert periods["rotation_period_h"]["sigma_h"] == pytest.approx(sigma_f / f_psi**2 / 3600)
