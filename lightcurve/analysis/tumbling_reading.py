@@ -13,10 +13,11 @@ image; Kaasalainen & Torppa 2001, Icarus 153, 24, eq. 1) ::
 with ``s_e``, ``o_e`` the Sun and observer directions in the body frame at epoch e and ρ
 the convex-inversion scattering law, Lommel–Seeliger plus ``c = 0.1`` times Lambert, no
 phase function (:mod:`brdf.lommel_seeliger`; Kaasalainen & Torppa 2001, sec. 2). A convex
-body's brightness is reproduced exactly by such areas, and non-negativity makes the fit
-far more selective than a series truncated in degree. The areas are the variable
-projection of the motion (:func:`~lightcurve.analysis.egi.fit.egi_residuals`; Golub &
-Pereyra 1973, SIAM J. Numer. Anal. 10, 413), so only the motion is searched.
+body's brightness is reproduced exactly by such areas (closed: ``Σ a_n n = 0``), and
+non-negativity makes the fit far more selective than a series truncated in degree. The
+areas are the variable projection of the motion
+(:func:`~lightcurve.analysis.egi.fit.egi_residuals`; Golub & Pereyra 1973, SIAM J. Numer.
+Anal. 10, 413), so only the motion is searched.
 
 The body's attitude is ``A(t) = M(f_ψ t + τ₀) R``: ``M`` the scale-free torque-free motion
 in the frame of the angular momentum ``L`` (:func:`~filters.attitude.torque_free_motion.
@@ -28,11 +29,16 @@ and ``d = L²/(2E)``, with ``d`` solved for the reading's ratio ``P_φ/P_ψ``
 (:func:`motions_with_ratio`, over a lattice of moments), so a reading's free parameters are
 the moments along that curve, ``τ₀`` and ``R``.
 
-The search per reading (:func:`reading_chi2`): :data:`SCREEN_TRIALS` random trials (a
-motion of the lattice, τ₀ uniform, R uniform) scored on :data:`SCREEN_NORMALS` normals at
-most :data:`SCREEN_EPOCHS` epochs; the best :data:`REFINED` refined in ``(R, τ₀)`` by
-trust-region least squares on the same grid, the periods held. Readings have the same
-parameter count, so their least χ² compare directly (:func:`convex_reading`).
+The search per reading (:func:`reading_chi2`): random trials (a motion of the lattice, τ₀
+uniform, R uniform) scored on a grid of normals at thinned epochs; the best few refined in
+``R``, ``τ₀`` and the moments (``d`` re-solved) by trust-region least squares on the same
+grid, the periods held. Readings have the same parameter count, so their least χ²
+compare directly (:func:`convex_reading`). The decision (:func:`decide_reading`): every
+reading in a quick pass (:data:`QUICK_TRIALS` trials on :data:`QUICK_NORMALS` normals and
+:data:`QUICK_EPOCHS` epochs, the best :data:`QUICK_REFINED` refined), the
+:data:`FINALISTS` lowest refined again on :data:`SCREEN_NORMALS` normals and
+:data:`SCREEN_EPOCHS` epochs; the two lowest are told apart when their Δχ², over the best's
+χ² per epoch when above 1, reaches :data:`AMBIGUOUS_DELTA_CHI2`.
 """
 
 from __future__ import annotations
@@ -506,13 +512,10 @@ def decide_reading(
     *,
     seed: int = 0,
 ) -> ConvexDecision | None:
-    """The convex model's reading of a fitted pair (module docstring): every reading
-    (:func:`reading_hypotheses`) fitted in a quick pass (:data:`QUICK_NORMALS` normals,
-    :data:`QUICK_EPOCHS` epochs, :data:`QUICK_TRIALS` trials, the best one refined); the
-    best fits of the :data:`FINALISTS` lowest readings refined on the full profile
-    (:data:`SCREEN_NORMALS` normals, :data:`SCREEN_EPOCHS` epochs). ``delta_chi2`` is the
-    runner-up's χ² minus the best's over the best's χ² per epoch (when above 1: the
-    misfit the law and the grid leave counts as noise).
+    """The convex model's reading of a fitted pair (module docstring, "The decision").
+
+    ``delta_chi2`` is the runner-up's χ² minus the best's over the best's χ² per epoch
+    when above 1: the misfit the law and the grid leave counts as noise.
 
     Parameters
     ----------
