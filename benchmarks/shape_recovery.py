@@ -46,8 +46,13 @@ start state for the tumbling case) is the held-out light curve. The shape is fit
 :func:`lightcurve.analysis.egi.fit_material` (the CLI default: Ashikhmin–Shirley and Phong
 tried, rd held at 0.2) and, as a check of the fit alone, with the true material given
 (``known``), both with the smoothness weight ``lightcurve shape`` sets by default
-(:func:`~lightcurve.analysis.egi.fit.default_smoothing`; ``--smoothing`` overrides it).
-Printed per run and summarised per scenario:
+(:func:`~lightcurve.analysis.egi.fit.default_smoothing`; ``--smoothing`` overrides it),
+and then with the facets ``lightcurve shape --faces`` keeps (``--faces``, default ``auto``:
+the fewest faces the data need on arcs that see the normals from all sides,
+:func:`lightcurve.analysis.egi.simplify.choose_faces`). Where that step changed the fit,
+the plain fit is scored beside it (``all_faces``; the summary's ``all_faces_*`` figures:
+the baseline of the same run), with ``faces_s`` its time. Printed per run and summarised
+per scenario:
 
 * ``heldout_ratio``: rms of (held-out measured − predicted) over the noise rms, the
   prediction rendered by the project's renderer from the reconstructed mesh with the
@@ -65,12 +70,13 @@ Printed per run and summarised per scenario:
 
 ``speed``: one EGI fit of 2 000 normals × 1 200 epochs (the 40-minute arc) with the material
 given, best of 3: the grid fit alone (design matrix + NNLS) and the full fit (two cluster
-refinements and polishes); and the **baseline** measured in the same run: the plain grid fit's
-held-out ratio and normal errors on the first ``geo_tumbling`` runs against the full fit's.
+refinements and polishes), and the fewest-faces step on that fit (``fewest_faces_s``); and
+the **baseline** measured in the same run: the plain grid fit's held-out ratio and normal
+errors on the first ``geo_tumbling`` runs against the full fit's and the fewest faces'.
 
     python -m benchmarks.shape_recovery [--runs 2] [--first-run 0] [--seed 34]
         [--sections geo_tumbling,...] [--normals 2000] [--materials fitted,known]
-        [--objects box_3x2x1,...] [--smoothing auto] [--out FILE]
+        [--objects box_3x2x1,...] [--smoothing auto] [--faces auto] [--out FILE]
 """
 
 from __future__ import annotations
@@ -101,6 +107,7 @@ from lightcurve.analysis.egi.epochs import truth_attitudes
 from lightcurve.analysis.egi.fit import default_smoothing, design_matrix
 from lightcurve.analysis.egi.joint import mirror_turns
 from lightcurve.analysis.egi.search import frame_turn
+from lightcurve.analysis.egi.simplify import FACES, choose_faces, fewest_faces
 from lightcurve.io.atomic import json_ready
 from lightcurve.io.observations import Observations
 from lightcurve.joint_shape import fit_joint_shape
@@ -358,6 +365,29 @@ def score(
     }
 
 
+#: Scores of the fit with every facet kept, recorded beside the fewest faces' (the baseline).
+ALL_FACES_KEYS = ("heldout_ratio", "axis_ratio_error", "normal_error_deg", "n_facets")
+
+
+def _faces(
+    shape, fit: EGIFit, epochs: FitEpochs, held_out, noise_mag, args, *, turn=None
+) -> tuple[EGIFit, dict[str, Any]]:
+    """The fit with its faces chosen by ``args.faces`` (as ``lightcurve shape --faces``),
+    the step's time and facet counts, and, when it changed the fit, the plain fit's scores
+    (``all_faces``: the baseline of the same run)."""
+    start = time.perf_counter()
+    chosen = choose_faces(fit, epochs, args.faces)
+    out: dict[str, Any] = {
+        "faces_s": time.perf_counter() - start,
+        "fitted_facets": int(np.count_nonzero(fit.areas)),
+        "kept_facets": int(np.count_nonzero(chosen.areas)),
+    }
+    if chosen is not fit:
+        plain = score(shape, fit, held_out, noise_mag, turn)
+        out["all_faces"] = {key: plain[key] for key in ALL_FACES_KEYS}
+    return chosen, out
+
+
 def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     """The joint fit of ``arcs`` (true material given) scored modulo the frame alignment."""
     start = time.perf_counter()
@@ -374,6 +404,7 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
     )
     free = int(np.count_nonzero(joint.fit.areas))
     reduced = max(joint.fit.chi2 / max(len(joint.epochs) - free, 1), 1.0)
+    chosen, faces = _faces(shape, joint.fit, joint.epochs, held_out, noise_mag, args, turn=turn)
     return {
         "fit_s": seconds,
         "fit_rms_mag": _finite(joint.fit.residual_rms_mag(joint.epochs)),
@@ -387,7 +418,8 @@ def _joint_record(shape, arcs, held_out, noise_mag, args) -> dict[str, Any]:
         "alignment": alignment,
         "attitude_error_deg": float(errors[-1]),
         "attitude_error_median_deg": float(np.median(errors)),
-        **score(shape, joint.fit, held_out, noise_mag, turn),
+        **faces,
+        **score(shape, chosen, held_out, noise_mag, turn),
     }
 
 
@@ -436,31 +468,33 @@ def run_case(name: str, shape: FacetModel, scenario: str, run: int, args) -> dic
     else:
         epochs = FitEpochs.from_observations(arcs, [truth_attitudes(arc) for arc in arcs])
         fitters = {
-            "fitted": lambda: fit_material(epochs, **_options(epochs, args)),
-            "known": lambda: fit_egi(epochs, _true_material(), **_options(epochs, args)),
+            "fitted": lambda: (fit_material(epochs, **_options(epochs, args)), epochs),
+            "known": lambda: (fit_egi(epochs, _true_material(), **_options(epochs, args)), epochs),
         }
         fitters = {label: fitters[label] for label in args.materials}
         if scenario == "geo_night":
 
-            def modes() -> EGIFit:
+            def modes() -> tuple[EGIFit, FitEpochs]:
                 attitudes = [mode_attitudes(arcs[0], shape, args.seed)]
                 found = FitEpochs.from_observations(arcs, attitudes)
-                return fit_egi(found, _true_material(), **_options(found, args))
+                return fit_egi(found, _true_material(), **_options(found, args)), found
 
             fitters["modes"] = modes
     for label, fitter in fitters.items():
         start = time.perf_counter()
         try:
-            fit = fitter()
             if label == "joint":
-                record[label] = fit
+                record[label] = fitter()
                 continue
+            fit, fitted_epochs = fitter()
             seconds = time.perf_counter() - start
+            chosen, faces = _faces(shape, fit, fitted_epochs, held_out, noise_mag, args)
             record[label] = {
                 "fit_s": seconds,
-                "fit_rms_mag": _finite(fit.residual_rms_mag(epochs)),
+                "fit_rms_mag": _finite(chosen.residual_rms_mag(epochs)),
                 "smoothing": fit.smoothing,
-                **score(shape, fit, held_out, noise_mag, arcs=arcs),
+                **faces,
+                **score(shape, chosen, held_out, noise_mag, arcs=arcs),
             }
         except (ValueError, RuntimeError) as exc:  # a failed fit is a result
             record[label] = {"error": f"{type(exc).__name__}: {exc}"[:300]}
@@ -477,6 +511,8 @@ def speed(args) -> dict[str, Any]:
     material = _true_material()
     grid = best_time(lambda: fit_egi(epochs, material, normals=args.normals, refinements=0), 3)
     full = best_time(lambda: fit_egi(epochs, material, normals=args.normals), 3)
+    fitted = fit_egi(epochs, material, normals=args.normals)
+    fewest = best_time(lambda: fewest_faces(fitted, epochs), 3)
     design = best_time(
         lambda: design_matrix(normal_grid(args.normals), epochs, material),
         3,
@@ -488,8 +524,11 @@ def speed(args) -> dict[str, Any]:
         fitted_on = observe(shapes[name], "geo_tumbling", rng, noise_mag)
         held_out = observe(shapes[name], "geo_tumbling", rng, noise_mag)
         row = {"object": name}
-        for label, rounds in (("baseline_grid", 0), ("full", 2)):
-            fit = fit_egi(_epochs(fitted_on), material, normals=args.normals, refinements=rounds)
+        arc = _epochs(fitted_on)
+        for label, rounds in (("baseline_grid", 0), ("full", 2), ("fewest_faces", 2)):
+            fit = fit_egi(arc, material, normals=args.normals, refinements=rounds)
+            if label == "fewest_faces":
+                fit = fewest_faces(fit, arc)
             scored = score(shapes[name], fit, held_out, noise_mag)
             row[label] = {
                 key: scored[key]
@@ -503,6 +542,8 @@ def speed(args) -> dict[str, Any]:
         "grid_fit_s": grid,
         "full_fit_s": full,
         "full_over_grid": full / grid,
+        "fewest_faces_s": fewest,
+        "full_with_fewest_faces_s": full + fewest,
         "accuracy_baseline_vs_full": comparison,
     }
 
@@ -526,6 +567,36 @@ def _by_phase(cases: list[dict[str, Any]], ratio: np.ndarray) -> dict[str, Any]:
         out[f"{name}_runs"] = int(mask.sum())
         out[f"{name}_heldout_le_1_3"] = float(np.mean(ratio[mask] <= 1.3)) if mask.any() else None
     return out
+
+
+def _all_faces(
+    rows: list[dict[str, Any]], ratio: np.ndarray, axes: np.ndarray, normal: np.ndarray
+) -> dict[str, Any]:
+    """The baseline beside the chosen faces: the same summary figures of the plain fits
+    (every facet kept; the chosen fit's own where the step left it unchanged), the
+    simplified runs and the step's median time."""
+    plain = [r.get("all_faces") for r in rows]
+    base_ratio = np.array(
+        [(p["heldout_ratio"] if p else r) or math.inf for p, r in zip(plain, ratio, strict=True)]
+    )
+    base_axes = np.array(
+        [p["axis_ratio_error"] if p else a for p, a in zip(plain, axes, strict=True)]
+    )
+    base_normal = np.array(
+        [
+            max(p["normal_error_deg"], default=0.0) if p else n
+            for p, n in zip(plain, normal, strict=True)
+        ]
+    )
+    return {
+        "simplified_runs": sum(p is not None for p in plain),
+        "faces_s_median": float(np.median([r.get("faces_s", 0.0) for r in rows])),
+        "all_faces_heldout_ratio_median": float(np.median(base_ratio)),
+        "all_faces_heldout_ratio_le_1_3": float(np.mean(base_ratio <= 1.3)),
+        "all_faces_axis_ratio_error_median": float(np.median(base_axes)),
+        "all_faces_axis_ratio_error_le_10pct": float(np.mean(base_axes <= 0.10)),
+        "all_faces_normal_error_le_5deg": float(np.mean(base_normal <= 5.0)),
+    }
 
 
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
@@ -554,6 +625,8 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
                 "normal_error_le_5deg": float(np.mean(normal <= 5.0)) if rows else None,
                 "fit_s_median": float(np.median([r["fit_s"] for r in rows])) if rows else None,
             }
+            if rows:
+                out[f"{scenario}/{label}"] |= _all_faces(rows, ratio, axes, normal)
             if rows and "heldout_phase_outside_deg" in cases[0]:
                 out[f"{scenario}/{label}"] |= _by_phase(cases, ratio)
             seen = [
@@ -611,6 +684,12 @@ def main(argv: list[str] | None = None) -> None:
         "--smoothing",
         default="auto",
         help="smoothness weight of the known-attitude fits, or 'auto' (lightcurve shape's rule)",
+    )
+    parser.add_argument(
+        "--faces",
+        default="auto",
+        choices=FACES,
+        help="facets kept (lightcurve shape --faces); the plain fit is scored beside",
     )
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)

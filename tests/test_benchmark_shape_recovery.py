@@ -1,5 +1,7 @@
 """The shape-recovery benchmark's core on one small case: its objects, scores and summary."""
 
+import argparse
+
 import numpy as np
 import pytest
 
@@ -49,15 +51,23 @@ def test_a_known_material_fit_is_scored_and_summarised(arcs):
     shape, fitted_on, held_out = arcs
     epochs = FitEpochs.from_observations([fitted_on], [truth_attitudes(fitted_on)])
     fit = fit_egi(epochs, shape_recovery._true_material(), normals=500)
-    scored = shape_recovery.score(shape, fit, held_out, 0.03)
+    fewest, faces = shape_recovery._faces(
+        shape, fit, epochs, held_out, 0.03, argparse.Namespace(faces="fewest")
+    )
+    assert faces["kept_facets"] < faces["fitted_facets"]
+    scored = shape_recovery.score(shape, fewest, held_out, 0.03)
     assert max(scored["normal_error_deg"]) < 5.0
     record = {
         "scenario": "geo_tumbling",
-        "known": {"fit_s": 1.0, **scored},
+        "known": {"fit_s": 1.0, **faces, **scored},
         "fitted": {"error": "x"},
     }
     summary = shape_recovery.summarise([record])
     assert summary["geo_tumbling/known"]["runs"] == 1
+    assert summary["geo_tumbling/known"]["simplified_runs"] == 1
+    # the baseline beside it: the plain fit's own scores
+    plain = shape_recovery.score(shape, fit, held_out, 0.03)["heldout_ratio"]
+    assert summary["geo_tumbling/known"]["all_faces_heldout_ratio_median"] == plain
     assert summary["geo_tumbling/fitted"]["failed"] == 1
     assert scored["heldout_ratio_egi"] == pytest.approx(scored["heldout_ratio"], rel=0.5)
     record |= shape_recovery.identifiability(shape, [fitted_on], held_out)

@@ -19,6 +19,8 @@ def test_run_case_records_truth_and_estimate():
     assert {"both_right", "pair_right", "tumbling", "delta_bic", "covered"} <= set(record)
     assert record["lattice"] in ("same", "finer", "coarser", "other")
     assert record["lattice_right"] == (record["lattice"] == "same")
+    assert {"rule_both_right", "reading_method", "reading_delta_chi2"} <= set(record)
+    assert record["reading_method"] in ("convex", "rule")
 
 
 def test_rates_in_the_asked_mode_and_an_asymmetric_egg():

@@ -229,7 +229,7 @@ def night_periods(
         mjd = float(np.mean(obs.mjd))
         name = str(obs.source)
         if tumbling:
-            result = tumbling_search(obs, period_range_h)
+            result = tumbling_search(obs, period_range_h, model_reading=False)
             for series, p, s in zip(
                 ("shorter", "longer"), result.periods_h, result.sigmas_h, strict=True
             ):

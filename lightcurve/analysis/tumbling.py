@@ -33,7 +33,8 @@ The search (:func:`tumbling_search`):
    minima (and their halves; each once, to a grid step), leaving out minima whose harmonics
    up to the one-period scan's order pass the Nyquist frequency of the median cadence (on
    a regular cadence Δ, ``k f`` near ``1/Δ`` samples as the slow ``1/Δ − k f``: an alias of
-   a real term, not a first frequency), f2 over the whole grid of step ``1/(oversample · T)`` within
+   a real term, not a first frequency), f2 over the whole grid of step
+   ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
    ``max_coarse_points`` points drawn at random (a fixed seed: irregular sampling has no
    aliases of the regular cadence, which a strided subset would fold into the band);
@@ -67,7 +68,8 @@ of φ + ψ, i.e. ``f_s = f_φ − f_ψ`` in a SAM (ψ turns backwards relative t
 LAM mostly ``P_φ < P_ψ`` (both checked over random states in the tests), which splits the
 two readings at ``f_s = 2x`` (:func:`euler_reading`). This is a heuristic whose success
 rate the benchmark measures, not a theorem; ``periods_h`` and ``combinations`` are the
-model-free result.
+model-free result. A tumbler's pair is read by a convex facet model instead
+(:mod:`~lightcurve.analysis.tumbling_reading`) unless its two best readings are close.
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ from lightcurve.analysis.period import (
     period_search,
 )
 from lightcurve.analysis.rotator_rival import geometry_explains_pair, rotator_bic, search_penalty
+from lightcurve.analysis.tumbling_reading import ConvexDecision, decide_reading
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -183,6 +186,8 @@ class TumblingResult:
         First periods of the coarse scan.
     scan_chi2 : (r, n) numpy.ndarray
         Order-2 χ² of the coarse scan (on the coarse points).
+    convex : ConvexDecision or None
+        The convex model's reading of a tumbler's pair (None: not tumbling, or not run).
     """
 
     periods_h: np.ndarray
@@ -198,11 +203,14 @@ class TumblingResult:
     scan_periods_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
     scan_first_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
     scan_chi2: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    convex: ConvexDecision | None = None
 
     @property
     def reading(self) -> dict:
-        """:func:`euler_reading` of the two periods."""
-        return euler_reading(self.periods_h, self.sigmas_h, self.combinations)
+        """The convex model's reading of the two periods, else :func:`euler_reading`."""
+        if self.convex is not None and not self.convex.ambiguous:
+            return {**self.convex.periods(self.periods_h, self.sigmas_h), "method": "convex"}
+        return {**euler_reading(self.periods_h, self.sigmas_h, self.combinations), "method": "rule"}
 
     def summary(self) -> dict:
         """JSON-ready: the keys documented in ``docs/formats.md``."""
@@ -217,6 +225,8 @@ class TumblingResult:
             "precession_period_h": reading["precession_period_h"],
             "rotation_period_h": reading["rotation_period_h"],
             "mode": reading["mode"],
+            "reading_method": reading["method"],
+            "reading_delta_chi2": None if self.convex is None else self.convex.delta_chi2,
             "combinations": self.combinations,
             "two_period_order": self.order,
             "two_period_chi2": self.chi2,
@@ -408,6 +418,7 @@ def tumbling_search(
     oversample: float = 3.0,
     max_coarse_points: int = 2000,
     trend_degree: int = TREND_DEGREE,
+    model_reading: bool = True,
     progress: Callable[[int, int], None] | None = None,
 ) -> TumblingResult:
     """Two-period (tumbling) analysis of one or more observation files (module docstring).
@@ -431,6 +442,8 @@ def tumbling_search(
         Points of the coarse scan (a seeded random subset); the refinement uses all.
     trend_degree : int
         Degree of each light curve's polynomial in time, in both series (module docstring).
+    model_reading : bool
+        Read a tumbler's pair by the convex model (:func:`decide_reading`).
     progress : callable, optional
         ``progress(rows_done, rows_total)`` over the coarse scan's rows.
 
@@ -573,7 +586,7 @@ def tumbling_search(
         }
         for i in np.argsort(-amplitude)[:10]
     ]
-    return TumblingResult(
+    result = TumblingResult(
         periods_h=periods_h,
         sigmas_h=sigmas_h,
         order=order,
@@ -596,3 +609,7 @@ def tumbling_search(
         scan_first_h=1.0 / first / 3600.0,
         scan_chi2=np.where(allowed, scan, np.inf),
     )
+    result.convex = (
+        decide_reading(observations, pair) if result.tumbling and model_reading else None
+    )
+    return result

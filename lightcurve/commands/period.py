@@ -11,6 +11,7 @@ Tumbling (non-principal-axis rotation): with --tumbling the two-period Fourier s
 searched as well; it is called tumbling when it beats one period by ΔBIC > 10 + 2 ln M (M
 the trial second frequencies) with non-commensurate periods that one period changing with
 the geometry does not explain. Keys periods_h, precession_period_h, rotation_period_h, mode,
+reading_method (a tumbler's pair read by a convex facet model, or the amplitude rule),
 tumbling, delta_bic, combinations; plot OUT/tumbling_periodogram.png. Without --tumbling
 these keys are null, and a note suggests it when the files span at most HINT_SPAN_DAYS and
 the one-period fit leaves residuals HINT_REDUCED_CHI2 times their stated variance (the
@@ -178,6 +179,8 @@ def _tumbling(observations: list, args: argparse.Namespace) -> dict:
             "precession_period_h": None,
             "rotation_period_h": None,
             "mode": None,
+            "reading_method": None,
+            "reading_delta_chi2": None,
             "combinations": [],
         }
     result = tumbling_search(observations, args.range)
@@ -187,7 +190,10 @@ def _tumbling(observations: list, args: argparse.Namespace) -> dict:
         f"{p['period_h']:.6g} ± {p['sigma_h']:.2g} h" for p in summary["periods_h"]
     )
     verdict = "tumbling" if result.tumbling else "not tumbling"
-    print(f"two periods {periods}: {verdict} (ΔBIC {result.delta_bic:.4g}, mode {summary['mode']})")
+    print(
+        f"two periods {periods}: {verdict} (ΔBIC {result.delta_bic:.4g}, mode {summary['mode']}, "
+        f"reading {summary['reading_method']})"
+    )
     return summary
 
 

@@ -30,6 +30,12 @@ smoothness weight when the body-frame Sun–observer bisectors stay near one pla
 stabilised object: the data see its normals along one band, and the fit could otherwise put
 area of any size where it hardly sees), and none otherwise (docs/shape.md).
 
+Faces: --faces auto (the default) simplifies the fitted EGI of a tumbling object to the
+fewest facets the data need: merges of nearby facets and removals of small ones, each kept
+when the χ² rises by less than the Bayesian information criterion credits for the
+parameters saved; --faces all keeps every fitted facet, --faces fewest simplifies a
+stabilised object's fit too (docs/shape.md).
+
 Writes DIR/shape.obj (metres, principal frame; the rotation from the attitudes' body frame
 in its comments), DIR/summary.json, DIR/egi.csv (normals, areas, 1σ), DIR/fit.csv and
 DIR/fit.png. `lightcurve shapes add NAME DIR/shape.obj --brdf … --param …` takes the shape
@@ -100,6 +106,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="WEIGHT",
         help="relative Tikhonov smoothness weight, or 'auto' (default): a small weight when "
         "the data see the normals along one band (a stabilised object), else none",
+    )
+    parser.add_argument(
+        "--faces",
+        choices=("auto", "fewest", "all"),
+        default="auto",
+        help="fewest: simplify the EGI to the fewest facets the data need (merges and "
+        "removals judged by the BIC); all: keep every fitted facet; auto (default): fewest "
+        "when the data see the normals from all sides (a tumbling object), else all",
     )
     parser.add_argument(
         "--bootstrap", type=int, default=8, help="bootstrap refits for the axis ratios' 1σ"
@@ -192,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
     from lightcurve import io
     from lightcurve.analysis.egi import FitEpochs, bootstrap_areas, convex_solid
     from lightcurve.analysis.egi.plots import plot_egi_fit
+    from lightcurve.analysis.egi.simplify import choose_faces
     from lightcurve.io.atomic import atomic_write_csv, atomic_write_json, json_ready
     from shapes import write_obj
 
@@ -213,6 +228,8 @@ def run(args: argparse.Namespace) -> int:
         attitudes = _attitudes(observations, args.attitude)
         epochs = FitEpochs.from_observations(observations, attitudes)
         fit, scale_note = _fit(args, epochs)
+    facets_fitted = int(np.count_nonzero(fit.areas))
+    fit = choose_faces(fit, epochs, args.faces)
     samples = bootstrap_areas(epochs, fit, samples=args.bootstrap, seed=args.seed)
     solid = convex_solid(fit.normals, fit.areas, samples=samples if args.bootstrap > 1 else None)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -242,6 +259,11 @@ def run(args: argparse.Namespace) -> int:
         "material": {"brdf": fit.material.name, "params": fit.material.params},
         "scale_note": scale_note,
         "smoothing": fit.smoothing,
+        "faces": {
+            "mode": args.faces,
+            "fitted_facets": facets_fitted,
+            "kept_facets": int(np.count_nonzero(fit.areas)),
+        },
         "surface_area_m2": float(fit.areas.sum()),
         "volume_m3": float(solid.model.volume),
         "axis_ratios": {"a/b": float(solid.axis_ratios[0]), "b/c": float(solid.axis_ratios[1])},

@@ -57,6 +57,9 @@ def test_shape_writes_the_documented_outputs_and_shapes_add_takes_them(box_file,
     assert summary["axis_ratios"]["a/b"] == pytest.approx(1.5, rel=0.05)
     assert summary["axis_ratios"]["b/c"] == pytest.approx(2.0, rel=0.05)
     assert summary["axis_ratio_sigma"]["a/b"] > 0
+    # random attitudes see every side: the fewest faces the data need, the box's six
+    assert summary["faces"]["mode"] == "auto"
+    assert summary["faces"]["kept_facets"] == 6 < summary["faces"]["fitted_facets"]
     for name in ("shape.obj", "fit.png", "egi.csv", "fit.csv"):
         assert (out / name).is_file()
     assert "principal frame" in (out / "shape.obj").read_text()
@@ -70,6 +73,18 @@ def test_shape_writes_the_documented_outputs_and_shapes_add_takes_them(box_file,
     model = get_library(library).load("found")
     assert model.area == pytest.approx(summary["surface_area_m2"], rel=1e-6)
     assert np.allclose(model.center_of_mass, 0.0, atol=1e-6)
+
+
+def test_faces_all_keeps_every_fitted_facet(box_file, tmp_path, capsys):
+    out = tmp_path / "fit"
+    code, _, err = _run(
+        capsys, "shape", box_file, "--out", out, "--attitude", "truth", "--brdf", "lambert",
+        "--param", "rd=0.3", "--normals", "300", "--bootstrap", "0", "--faces", "all",
+    )  # fmt: skip
+    assert code == 0, err
+    faces = json.loads((out / "summary.json").read_text())["faces"]
+    assert faces["mode"] == "all"
+    assert faces["kept_facets"] == faces["fitted_facets"] > 6
 
 
 def test_fitted_material_is_a_registry_model(box_file, tmp_path, capsys):

@@ -49,7 +49,9 @@ __all__ = [
     "egi_residuals",
     "fit_egi",
     "fit_material",
+    "fit_result",
     "min_epochs",
+    "solve_areas",
 ]
 
 #: Fewest epochs of any fit, and epochs per normal: below these the data cannot hold the
@@ -188,7 +190,7 @@ def fit_egi(
     if not (math.isfinite(smoothing) and smoothing >= 0.0):
         raise ValueError(f"smoothing must be finite and ≥ 0, got {smoothing}")
     grid_design = design_matrix(grid, epochs, material)
-    areas = _solve(grid_design, grid, epochs, smoothing)
+    areas = solve_areas(grid_design, grid, epochs, smoothing)
     normals, design = grid, grid_design
     spacing = math.sqrt(4.0 * math.pi / len(grid))
     for _ in range(refinements):
@@ -196,16 +198,16 @@ def fit_egi(
         normals = np.vstack([grid, added])
         design = np.hstack([grid_design, design_matrix(added, epochs, material)])
         if smoothing > 0.0:
-            areas = _solve(design, normals, epochs, smoothing, len(grid))
+            areas = solve_areas(design, normals, epochs, smoothing, len(grid))
         else:  # the grid normals near the clusters, and the clusters' means
             near = _near(grid, added, 3.0 * spacing)
             local = np.concatenate([near, np.arange(len(grid), len(normals))])
             areas = np.zeros(len(normals))
-            areas[local] = _solve(design[:, local], normals[local], epochs, 0.0)
+            areas[local] = solve_areas(design[:, local], normals[local], epochs, 0.0)
         if polished:
             normals, areas = polish(normals, areas, epochs, material)
             design[:, areas > 0] = design_matrix(normals[areas > 0], epochs, material)
-    return _result(normals, areas, design, epochs, material, smoothing)
+    return fit_result(normals, areas, design, epochs, material, smoothing)
 
 
 def _near(grid: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
@@ -214,7 +216,7 @@ def _near(grid: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
     return np.flatnonzero(found > 0)
 
 
-def _solve(
+def solve_areas(
     design: np.ndarray,
     normals: np.ndarray,
     epochs: FitEpochs,
@@ -249,7 +251,7 @@ def egi_residuals(epochs: FitEpochs, material: brdf.BRDF, normals: np.ndarray) -
     """Weighted flux residuals ``(F − F_obs)/σ`` (E,) of the non-negative EGI over the fixed
     ``normals`` (no refinement, no smoothing): the profile of the areas for given attitudes."""
     design = design_matrix(normals, epochs, material)
-    areas = _solve(design, normals, epochs, 0.0)
+    areas = solve_areas(design, normals, epochs, 0.0)
     return (design @ areas - epochs.flux) / epochs.flux_sigma
 
 
@@ -258,7 +260,7 @@ def _chi2(model: np.ndarray, epochs: FitEpochs) -> float:
     return float(np.sum(((model - epochs.flux) / epochs.flux_sigma) ** 2))
 
 
-def _result(
+def fit_result(
     normals: np.ndarray,
     areas: np.ndarray,
     design: np.ndarray,
@@ -266,6 +268,8 @@ def _result(
     material: brdf.BRDF,
     smoothing: float,
 ) -> EGIFit:
+    """The :class:`EGIFit` of ``areas`` over ``normals`` (``design`` their columns): model
+    flux, χ² and the areas' 1σ."""
     model = design @ areas
     chi2 = _chi2(model, epochs)
     area_sigma = _area_sigma(design / epochs.flux_sigma[:, None], areas, chi2, len(epochs))
@@ -563,5 +567,5 @@ def bootstrap_areas(epochs: FitEpochs, fit: EGIFit, *, samples: int, seed: int) 
     for k in range(samples):
         drawn = fit.model_mag + epochs.mag_err * rng.standard_normal(len(epochs))
         noisy = replace(epochs, mag=drawn)
-        out[k] = _solve(design, fit.normals, noisy, 0.0)
+        out[k] = solve_areas(design, fit.normals, noisy, 0.0)
     return out
