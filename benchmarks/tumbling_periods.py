@@ -15,10 +15,12 @@ Sections:
     Lemmon (:mod:`benchmarks.mismatch_study`); Gaussian noise uniform in 0.02-0.05 mag.
     The truth is :func:`filters.attitude.torque_free_periods` of the inertia and rates. A run
     *succeeds* when the reported precession and rotation periods are both within 1 % of
-    ``P_φ`` and ``P_ψ``; the pair is also scored regardless of which is which. The
-    fractions are over runs whose arc covers ≥ 3 cycles of each period. Baselines: the
-    one-period search, counted right when its period is within 1 % of ``P_φ`` or ``P_ψ``;
-    and the amplitude rule's reading of the same fitted pair
+    ``P_φ`` and ``P_ψ``; the pair is also scored regardless of which is which. The search
+    alone is scored by the lattice of combination frequencies its pair generates
+    (:func:`lattice_relation`): ``lattice_right`` when it is the truth's, whichever
+    generators the fit chose. The fractions are over runs whose arc covers ≥ 3 cycles of
+    each period. Baselines: the one-period search, counted right when its period is within
+    1 % of ``P_φ`` or ``P_ψ``; and the amplitude rule's reading of the same fitted pair
     (:func:`~lightcurve.analysis.tumbling.euler_reading`), against the reported one (the
     convex model's, :mod:`lightcurve.analysis.tumbling_reading`).
 ``rotators``
@@ -75,6 +77,8 @@ MAX_POINTS = 10_000
 CADENCE_S = 2.0
 NOISE_MAG = (0.02, 0.05)
 TOLERANCE = 0.01
+#: Largest |coefficient| of the integer combinations :func:`lattice_relation` tries.
+LATTICE_COEFFICIENT = 4
 MIN_CYCLES = 3.0
 DRIFT_PERIOD_H = 0.1
 DRIFT_FRACTION = 0.005
@@ -184,6 +188,51 @@ def simulate_run(
     return observations, inertia, omega, scenario, noise
 
 
+def _lattice_index(generators: np.ndarray, targets: np.ndarray) -> int | None:
+    """|det M| of the integer matrix M (entries within ±``LATTICE_COEFFICIENT``) with
+    ``targets = M generators`` to ``TOLERANCE`` of each target, each row the combination
+    with the smallest ``|a| + |b|``; None when a target is no such combination."""
+    span = range(-LATTICE_COEFFICIENT, LATTICE_COEFFICIENT + 1)
+    rows = []
+    for target in targets:
+        matches = [
+            (abs(a) + abs(b), a, b)
+            for a in span
+            for b in span
+            if abs(a * generators[0] + b * generators[1] - target) < TOLERANCE * target
+        ]
+        if not matches:
+            return None
+        rows.append(min(matches)[1:])
+    return round(abs(np.linalg.det(np.array(rows, float))))
+
+
+def lattice_relation(fitted: np.ndarray, truth: np.ndarray) -> str:
+    """How the lattice of combinations of a fitted frequency pair relates to the truth's.
+
+    Parameters
+    ----------
+    fitted, truth : (2,) float
+        Frequency pairs (Hz); the truth is ``(f_φ, f_ψ)``.
+
+    Returns
+    -------
+    str
+        ``"same"`` (each truth frequency an integer combination of the fitted pair, the
+        matrix unimodular: other generators of the same lattice); ``"finer"`` (the truth's
+        lattice a proper sublattice of the fitted one, e.g. a fitted ``f_φ/2``);
+        ``"coarser"`` (the fitted lattice a proper sublattice of the truth's, e.g.
+        ``(2 f_φ + f_ψ, f_ψ)``); ``"other"`` (neither: an alias or a wrong pair).
+    """
+    fitted, truth = np.asarray(fitted, float), np.asarray(truth, float)
+    index = _lattice_index(fitted, truth)
+    if index == 1:
+        return "same"
+    if index:
+        return "finer"
+    return "coarser" if _lattice_index(truth, fitted) else "other"
+
+
 def run_case(
     seed: int, index: int, *, mode: str | None = None, scenario: str | None = None
 ) -> dict[str, Any]:
@@ -213,6 +262,7 @@ def run_case(
         "tumbling": False,
         "both_right": False,
         "pair_right": False,
+        "lattice_right": False,
         "single_period_right": False,
     }
     started = time.perf_counter()
@@ -224,6 +274,7 @@ def run_case(
     precession = summary["precession_period_h"]["period_h"] * 3600.0
     rotation = summary["rotation_period_h"]["period_h"] * 3600.0
     found = np.sort(result.periods_h * 3600.0)
+    lattice = lattice_relation(1.0 / found, 1.0 / true_pair)
     rule = euler_reading(result.periods_h, result.sigmas_h, result.combinations)
 
     def close(a: float, b: float) -> bool:
@@ -250,6 +301,8 @@ def run_case(
         "pair_right": bool(
             all(close(a, b) for a, b in zip(found, np.sort(true_pair), strict=True))
         ),
+        "lattice": lattice,
+        "lattice_right": lattice == "same",
         "single_period_right": bool(
             any(close(result.single.period_h * 3600.0, p) for p in true_pair)
         ),
@@ -270,6 +323,7 @@ def tumblers(seed: int, runs: int) -> dict[str, Any]:
         "both_periods_within_1pct": fraction("both_right", covered),
         "baseline_rule_reading_both_within_1pct": fraction("rule_both_right", covered),
         "pair_within_1pct_either_assignment": fraction("pair_right", covered),
+        "pair_generates_the_true_lattice": fraction("lattice_right", covered),
         "called_tumbling": fraction("tumbling", covered),
         "mode_right": float(np.mean([r.get("reported_mode") == r["mode"] for r in covered]))
         if covered

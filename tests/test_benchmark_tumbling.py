@@ -2,7 +2,13 @@
 
 import numpy as np
 
-from benchmarks.tumbling_periods import drift_nights, egg, rates_in_mode, run_case
+from benchmarks.tumbling_periods import (
+    drift_nights,
+    egg,
+    lattice_relation,
+    rates_in_mode,
+    run_case,
+)
 from filters.attitude.torque_free_periods import euler_periods
 
 
@@ -11,6 +17,8 @@ def test_run_case_records_truth_and_estimate():
     assert record["scenario"] == "leo" and record["mode"] == "SAM"
     assert record["true_rotation_s"] > record["true_precession_s"] > 0
     assert {"both_right", "pair_right", "tumbling", "delta_bic", "covered"} <= set(record)
+    assert record["lattice"] in ("same", "finer", "coarser", "other")
+    assert record["lattice_right"] == (record["lattice"] == "same")
     assert {"rule_both_right", "reading_method", "reading_delta_chi2"} <= set(record)
     assert record["reading_method"] in ("convex", "rule")
 
@@ -37,3 +45,14 @@ def test_short_pass_whose_period_sits_at_the_range_edge_is_searched():
     range, and the one-period rival must still be fitted there."""
     record = run_case(0, 11)
     assert "error" not in record and "delta_bic" in record
+
+
+def test_lattice_relation_of_generators_sublattices_and_aliases():
+    truth = np.array([1 / 365.7, 1 / 1885.9])  # (f_φ, f_ψ), Hz
+    f_phi, f_psi = truth
+    assert lattice_relation(truth[::-1], truth) == "same"
+    assert lattice_relation(np.array([f_phi - f_psi, f_psi]), truth) == "same"
+    assert lattice_relation(np.array([f_phi + f_psi, f_phi]), truth) == "same"
+    assert lattice_relation(np.array([f_phi / 2, f_psi]), truth) == "finer"
+    assert lattice_relation(np.array([2 * f_phi + f_psi, f_psi]), truth) == "coarser"
+    assert lattice_relation(np.array([1 / 413.1, 1 / 543.7]), truth) == "other"

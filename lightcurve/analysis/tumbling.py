@@ -29,8 +29,12 @@ The search (:func:`tumbling_search`):
 
 1. the single-period search (:func:`~lightcurve.analysis.period.period_search`, one order)
    gives the dominant frequency f0;
-2. coarse scan: f1 over f0, f0/2, 2 f0 and the next deepest one-period minima (and their
-   halves), f2 over the whole grid of step ``1/(oversample · T)`` within
+2. coarse scan: f1 over f0, f0/2, 2 f0 and the ``_EXTRA_FIRST`` next deepest one-period
+   minima (and their halves; each once, to a grid step), leaving out minima whose harmonics
+   up to the one-period scan's order pass the Nyquist frequency of the median cadence (on
+   a regular cadence Δ, ``k f`` near ``1/Δ`` samples as the slow ``1/Δ − k f``: an alias of
+   a real term, not a first frequency), f2 over the whole grid of step
+   ``1/(oversample · T)`` within
    ``[f0/RATIO_SPAN, RATIO_SPAN · f0]`` and the period range, at order 2, on at most
    ``max_coarse_points`` points drawn at random (a fixed seed: irregular sampling has no
    aliases of the regular cadence, which a strided subset would fold into the band);
@@ -118,8 +122,10 @@ COMMENSURATE_MAX = 6
 RATIO_SPAN = 8.0
 #: Trial pairs per vectorised block.
 _CHUNK = 32
-#: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency.
-_EXTRA_FIRST = 3
+#: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency: the
+#: dominant term of a tumbler (the second harmonic of its spin about ``L``) is often only
+#: the one-period scan's fourth or fifth deepest minimum.
+_EXTRA_FIRST = 4
 #: Coarse pairs refined.
 _REFINED = 3
 
@@ -477,11 +483,20 @@ def tumbling_search(
             f"the second-period grid over {1 / hi / 3600:.3g}-{1 / lo / 3600:.3g} h is empty "
             "at this time span: widen the period range or use a longer light curve"
         )
-    peaks = [1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak"]
-    first = [f0, f0 / 2, 2 * f0]
-    for f in peaks[:_EXTRA_FIRST]:
-        first += [f, f / 2]
-    first = np.array([f for f in first if f_min <= f <= f_max])
+    # One-period minima whose harmonics pass the Nyquist frequency of the median cadence are
+    # the cadence's aliases of slower terms, not first frequencies of their own.
+    nyquist = 0.5 / float(np.median(np.diff(np.sort(data.times))))
+    peaks = [
+        f
+        for f in (1.0 / (a["period_h"] * 3600.0) for a in single.aliases if a["kind"] == "peak")
+        if max(single_orders) * f < nyquist
+    ]
+    kept: list[float] = []
+    for f in [f0, f0 / 2, 2 * f0, *(g for p in peaks[:_EXTRA_FIRST] for g in (p, p / 2))]:
+        # A first frequency within a grid step of one already kept would repeat its row.
+        if f_min <= f <= f_max and all(abs(f - g) > step for g in kept):
+            kept.append(f)
+    first = np.array(kept)
     coarse = _TwoPeriodFit(data, trend_degree, _subset(n, fraction))
     scan = np.empty((len(first), len(second)))
     allowed = np.zeros(scan.shape, bool)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from benchmarks.glint_power import fixed_geometry_curve
-from benchmarks.tumbling_periods import egg
+from benchmarks.tumbling_periods import egg, lattice_relation, simulate_run
 from filters.attitude.torque_free_periods import euler_periods
 from lightcurve.analysis.tumbling import euler_reading, tumbling_search, two_period_combinations
 from lightcurve.photometry.simulate import GaussianNoise, simulate
@@ -82,6 +82,21 @@ def test_principal_axis_rotator_is_not_tumbling():
     result = tumbling_search(sim)
     assert not result.tumbling
     assert result.single.double_peaked_h * 3600 == pytest.approx(truth.rotation_period_s, rel=1e-3)
+
+
+def test_spin_term_among_the_deeper_one_period_minima_is_a_first_frequency():
+    """A seeded GEO tumbler (LAM, 1 h, P_φ = 533 s, P_ψ = 838 s) whose one-period scan has
+    an 8.1-s minimum, the 2-s cadence's alias of the spin's second harmonic, and the spin
+    ``f_φ + f_ψ`` itself only as its fifth minimum: with the alias dropped and four minima
+    tried, the search lands on the true lattice (it had fitted an alias pair, 413 s and
+    544 s)."""
+    observations, inertia, omega, _, _ = simulate_run(0, 1)
+    truth = euler_periods(inertia, omega)
+    result = tumbling_search(observations, model_reading=False)  # the search alone
+    fitted = 1.0 / (result.periods_h * 3600.0)
+    true = 1.0 / np.array([truth.precession_period_s, truth.rotation_period_s])
+    assert lattice_relation(fitted, true) == "same"
+    assert result.tumbling
 
 
 def _terms(strong):
