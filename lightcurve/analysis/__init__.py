@@ -8,6 +8,8 @@ Modules
   series in one or more frequencies with per-curve trends (shared by the two searches).
 - :mod:`~lightcurve.analysis.tumbling` — two-period analysis of tumblers (two-dimensional
   Fourier series, precession and rotation periods).
+- :mod:`~lightcurve.analysis.two_period_series` — the two-period Fourier series and its
+  least-squares fit at trial frequency pairs (used by the two-period search).
 - :mod:`~lightcurve.analysis.tumbling_reading` — a tumbler's pair read as precession and
   rotation by a convex facet model under torque-free motion.
 - :mod:`~lightcurve.analysis.rotator_rival` — the one-period rival of the two-period

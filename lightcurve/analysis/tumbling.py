@@ -79,16 +79,21 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize
 
 from lightcurve.analysis.period import (
-    FourierDesign,
     PeriodResult,
     StackedLightCurves,
     period_search,
 )
 from lightcurve.analysis.rotator_rival import geometry_explains_pair, rotator_bic, search_penalty
 from lightcurve.analysis.tumbling_reading import ConvexDecision, decide_reading
+from lightcurve.analysis.two_period_series import (
+    MIN_SEPARATION_CYCLES,
+    TwoPeriodFit,
+    chi2_hessian,
+    local_minimum,
+    two_period_combinations,
+)
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -109,50 +114,18 @@ TREND_DEGREE = 3
 #: Two frequencies with ``|q f2 − p f1| < COMMENSURATE_RESOLUTION / T`` (p, q ≤
 #: ``COMMENSURATE_MAX``) are harmonics of one period, not two periods (T: the time span).
 COMMENSURATE_RESOLUTION = 0.25
-#: The two frequencies must differ by at least this many cycles over the time span T
-#: (closer ones beat into a slow modulation the arc cannot resolve as a period), and so
-#: must one and the double or half of the other: a rotator's first and second harmonics,
-#: drifting in phase as the geometry changes, otherwise pass for two periods.
-MIN_SEPARATION_CYCLES = 1.5
 #: The ratios ``(p, q)`` of that test, ``|q f2 − p f1| ≥ MIN_SEPARATION_CYCLES / T``.
 RESOLVED_RATIOS = ((1, 1), (1, 2), (2, 1))
 #: Largest numerator and denominator of the commensurability test.
 COMMENSURATE_MAX = 6
 #: The second frequency is searched within this factor of the dominant one.
 RATIO_SPAN = 8.0
-#: Trial pairs per vectorised block.
-_CHUNK = 32
 #: The one-period minima (besides f0, f0/2, 2 f0) tried as the first frequency: the
 #: dominant term of a tumbler (the second harmonic of its spin about ``L``) is often only
 #: the one-period scan's fourth or fifth deepest minimum.
 _EXTRA_FIRST = 4
 #: Coarse pairs refined.
 _REFINED = 3
-
-
-def two_period_combinations(order: int) -> np.ndarray:
-    """The combination vectors (j, k) of the two-period series of order m.
-
-    Parameters
-    ----------
-    order : int
-        m ≥ 1.
-
-    Returns
-    -------
-    (P, 2) int
-        ``0 ≤ j ≤ m``, ``|j| + |k| ≤ m``, not both zero, ``k > 0`` when ``j = 0``; ordered
-        by ``|j| + |k|`` then j then k. ``P = m(m + 1)`` (m = 2: 6, 3: 12, 4: 20).
-    """
-    if order < 1:
-        raise ValueError(f"the two-period order must be ≥ 1, got {order}")
-    pairs = [
-        (j, k)
-        for j in range(order + 1)
-        for k in range(-order, order + 1)
-        if j + abs(k) <= order and (j > 0 or k > 0)
-    ]
-    return np.array(sorted(pairs, key=lambda p: (p[0] + abs(p[1]), p[0], p[1])), dtype=int)
 
 
 @dataclass
@@ -279,79 +252,6 @@ def euler_reading(
         "rotation_period_h": {"period_h": float(1.0 / f_psi), "sigma_h": float(s_psi / f_psi**2)},
         "mode": mode,
     }
-
-
-class _TwoPeriodFit:
-    """χ² of the two-period series at trial pairs, on all points or the subset ``keep``."""
-
-    def __init__(
-        self,
-        data: StackedLightCurves,
-        trend_degree: int,
-        keep: np.ndarray | slice = slice(None),
-    ) -> None:
-        self.design = FourierDesign(
-            data.times[keep],
-            data.magnitudes[keep],
-            data.sigma[keep],
-            data.curve[keep],
-            trend_degree=trend_degree,
-        )
-        self.n = len(self.design.t)
-        # Combination terms slower than the trend resolves are left out of the series.
-        self.slowest = MIN_SEPARATION_CYCLES / float(np.ptp(data.times))
-
-    def chi2(self, pairs: np.ndarray, order: int) -> np.ndarray:
-        pairs = np.atleast_2d(pairs)
-        combos = two_period_combinations(order)
-        return np.concatenate(
-            [
-                self.design.solve_combinations(pairs[i : i + _CHUNK], combos, slowest=self.slowest)[
-                    1
-                ]
-                for i in range(0, len(pairs), _CHUNK)
-            ]
-        )
-
-    def coefficients(self, pair: np.ndarray, order: int) -> np.ndarray:
-        return self.design.solve_combinations(
-            np.asarray(pair, float)[None], two_period_combinations(order), slowest=self.slowest
-        )[0][0]
-
-    def bic(self, chi2: float, order: int) -> float:
-        n_parameters = 2 * len(two_period_combinations(order)) + self.design.n_nuisance + 2
-        return chi2 + n_parameters * math.log(self.n)
-
-
-def _hessian(values: np.ndarray, h: float) -> np.ndarray:
-    """Hessian of χ² from its values on a 3 × 3 stencil of spacing ``h`` (central
-    differences)."""
-    cross = (values[2, 2] - values[2, 0] - values[0, 2] + values[0, 0]) / 4.0
-    return np.array(
-        [
-            [values[2, 1] - 2 * values[1, 1] + values[0, 1], cross],
-            [cross, values[1, 2] - 2 * values[1, 1] + values[1, 0]],
-        ]
-    ) / (h * h)
-
-
-def _minimise(
-    fit: _TwoPeriodFit, pair: np.ndarray, order: int, step: float, *, tolerance: float
-) -> np.ndarray:
-    """Local minimum of χ²(f1, f2) near ``pair`` (Nelder–Mead in units of ``step``, to
-    ``tolerance`` of them)."""
-    origin = np.asarray(pair, float)
-    result = minimize(
-        lambda x: float(fit.chi2(origin + step * x, order)[0]),
-        np.zeros(2),
-        method="Nelder-Mead",
-        options={
-            "initial_simplex": [[0, 0], [0.5, 0], [0, 0.5]],
-            "xatol": tolerance,
-            "fatol": 1e-3,
-        },
-    )
-    return origin + step * result.x
 
 
 def _thinned(
@@ -497,7 +397,7 @@ def tumbling_search(
         if f_min <= f <= f_max and all(abs(f - g) > step for g in kept):
             kept.append(f)
     first = np.array(kept)
-    coarse = _TwoPeriodFit(data, trend_degree, _subset(n, fraction))
+    coarse = TwoPeriodFit(data, trend_degree, _subset(n, fraction))
     scan = np.empty((len(first), len(second)))
     allowed = np.zeros(scan.shape, bool)
     for row, f1 in enumerate(first):
@@ -521,7 +421,7 @@ def tumbling_search(
             break
     # Local minima on the coarse points; every re-base of each (the same lattice, so the
     # same minimum) and order judged by BIC on all points; the winner refined there.
-    full = _TwoPeriodFit(data, trend_degree)
+    full = TwoPeriodFit(data, trend_degree)
     # Admissible options first (when there are any), then by BIC.
     options = [
         (
@@ -532,7 +432,7 @@ def tumbling_search(
         )
         for start in starts
         for order in orders
-        for pair in _rebases(_minimise(coarse, start, order, step, tolerance=1e-2))
+        for pair in _rebases(local_minimum(coarse, start, order, step, tolerance=1e-2))
         if f_min - step <= pair.min() and pair.max() <= f_max + step
     ]
     if not options:
@@ -541,12 +441,12 @@ def tumbling_search(
             f"a {span / 3600:.3g}-h span: widen the period range or use a longer light curve"
         )
     _, _, order, pair = min(options, key=lambda option: option[:2])
-    pair = _minimise(full, pair, order, 0.25 * step, tolerance=1e-4)
+    pair = local_minimum(full, pair, order, 0.25 * step, tolerance=1e-4)
     h = 0.05 * step
     axes = [pair[d] + h * np.arange(-1, 2) for d in range(2)]
     stencil = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
     local = full.chi2(stencil, order).reshape(3, 3)
-    hessian = _hessian(local, h)
+    hessian = chi2_hessian(local, h)
     chi2 = float(local[1, 1])
     best_bic = full.bic(chi2, order)
     # f0 is the one-period search's own (in the range even where rounding puts it at the
