@@ -46,7 +46,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -64,9 +64,7 @@ from filters.attitude.torque_free_motion import (
     period_ratio,
     scaled_motion,
 )
-from lightcurve.analysis.egi.epochs import FitEpochs
-from lightcurve.analysis.egi.fit import egi_residuals
-from lightcurve.analysis.egi.grid import normal_grid
+from lightcurve.analysis.egi.profile import EGIProfile
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -74,7 +72,6 @@ __all__ = [
     "CONVEX_LAW",
     "MAX_MOMENT_RATIO",
     "ConvexDecision",
-    "ConvexProfile",
     "Reading",
     "ReadingFit",
     "convex_reading",
@@ -254,55 +251,6 @@ def _moved(motion: ScaledMotion, a: float, share: float, ratio: float) -> Scaled
     return scaled_motion(moments, d, motion.mode)
 
 
-class ConvexProfile:
-    """χ² of the best non-negative facet areas for trial attitudes, on thinned epochs.
-
-    Parameters
-    ----------
-    observations : Observations or sequence of them
-        The light curves of one object (one calibration: a common flux scale).
-    normals : int
-        Grid normals (:func:`~lightcurve.analysis.egi.grid.normal_grid`).
-    epochs : int
-        Epochs at most (evenly thinned over all files).
-    material : brdf.BRDF
-    """
-
-    def __init__(
-        self,
-        observations: Observations | Sequence[Observations],
-        *,
-        normals: int = SCREEN_NORMALS,
-        epochs: int = SCREEN_EPOCHS,
-        material: brdf.BRDF = CONVEX_LAW,
-    ) -> None:
-        obs_list = [observations] if isinstance(observations, Observations) else observations
-        total = sum(len(o) for o in obs_list)
-        step = max(1, math.ceil(total / epochs))
-        parts = [Observations(o.table.iloc[::step], o.meta) for o in obs_list]
-        identity = [np.tile([0.0, 0.0, 0.0, 1.0], (len(p), 1)) for p in parts]
-        # With identity attitudes the "body" directions are the inertial ones.
-        self.inertial = FitEpochs.from_observations(parts, identity)
-        start = min(float(o.mjd[0]) for o in obs_list)
-        self.seconds = (self.inertial.mjd - start) * 86400.0
-        self.grid = normal_grid(normals)
-        self.material = material
-
-    def chi2(self, matrices: np.ndarray) -> float:
-        """χ² of the profile for inertial → body attitude matrices (E, 3, 3) at the
-        thinned epochs."""
-        return float(np.sum(self.residuals(matrices) ** 2))
-
-    def residuals(self, matrices: np.ndarray) -> np.ndarray:
-        """Weighted flux residuals (E,) of the best non-negative areas."""
-        epochs = replace(
-            self.inertial,
-            light=np.einsum("eij,ej->ei", matrices, self.inertial.light),
-            view=np.einsum("eij,ej->ei", matrices, self.inertial.view),
-        )
-        return egi_residuals(epochs, self.material, self.grid)
-
-
 @dataclass(frozen=True)
 class ReadingFit:
     """The best convex fit of one reading.
@@ -329,14 +277,14 @@ class ReadingFit:
 
 
 def _attitudes(
-    profile: ConvexProfile, f_psi: float, motion: ScaledMotion, origin: float, frame: np.ndarray
+    profile: EGIProfile, f_psi: float, motion: ScaledMotion, origin: float, frame: np.ndarray
 ) -> np.ndarray:
     """``A(t) = M(f_ψ t + τ₀) R`` at the profile's epochs (module docstring)."""
     return attitude_about_momentum(motion, f_psi * profile.seconds + origin) @ frame
 
 
 def reading_chi2(
-    profile: ConvexProfile,
+    profile: EGIProfile,
     reading: Reading,
     rng: np.random.Generator,
     *,
@@ -348,7 +296,7 @@ def reading_chi2(
 
     Parameters
     ----------
-    profile : ConvexProfile
+    profile : EGIProfile
     reading : Reading
         Frequencies in Hz.
     rng : numpy.random.Generator
@@ -385,7 +333,7 @@ def reading_chi2(
 
 
 def _refined(
-    profile: ConvexProfile,
+    profile: EGIProfile,
     reading: Reading,
     motion: ScaledMotion,
     origin: float,
@@ -449,7 +397,7 @@ def convex_reading(
     -------
     list of ReadingFit
     """
-    profile = ConvexProfile(observations, normals=normals, epochs=epochs)
+    profile = EGIProfile(observations, CONVEX_LAW, normals=normals, epochs=epochs)
     fits = [
         reading_chi2(
             profile, reading, np.random.default_rng([seed, k]), trials=trials, refined=refined
@@ -542,7 +490,7 @@ def decide_reading(
     finalists = [fit for fit in quick[:FINALISTS] if fit.motion is not None]
     if len(finalists) < 2:
         return None
-    profile = ConvexProfile(observations)
+    profile = EGIProfile(observations, CONVEX_LAW, normals=SCREEN_NORMALS, epochs=SCREEN_EPOCHS)
     fits = sorted(
         (
             _refined(profile, fit.reading, fit.motion, fit.origin, fit.frame, FINAL_STEPS)

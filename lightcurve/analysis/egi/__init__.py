@@ -15,6 +15,8 @@ Modules
   directions, flux and its 1σ, from observation files and attitudes.
 - :mod:`~lightcurve.analysis.egi.fit` — the design matrix, the non-negative fit, the material
   search and the areas' 1σ.
+- :mod:`~lightcurve.analysis.egi.profile` — the profile χ² of trial attitude histories (the
+  best non-negative EGI of each fitted out), shared by the searches over attitudes.
 - :mod:`~lightcurve.analysis.egi.simplify` — the fewest faces the data need: merges and
   removals of facets judged by the Bayesian information criterion.
 - :mod:`~lightcurve.analysis.egi.solid` — the convex mesh in metres and its axis ratios with 1σ.

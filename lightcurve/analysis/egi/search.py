@@ -49,6 +49,7 @@ from filters.attitude import (
 from lightcurve.analysis.egi.epochs import FitEpochs
 from lightcurve.analysis.egi.fit import EGIFit, egi_residuals, fit_egi
 from lightcurve.analysis.egi.grid import normal_grid
+from lightcurve.analysis.egi.profile import EGIProfile
 from lightcurve.io.observations import Observations
 
 __all__ = [
@@ -191,29 +192,15 @@ def random_states(
     ]
 
 
-class _Profile:
-    """The profile χ² of one file's states on a thinned arc and a fixed grid."""
-
-    def __init__(self, obs: Observations, material: brdf.BRDF, normals: int, epochs: int):
-        step = max(1, math.ceil(len(obs) / epochs))
-        self.part = Observations(obs.table.iloc[::step], obs.meta)
-        self.seconds = (self.part.mjd - obs.mjd[0]) * 86400.0
-        self.material = material
-        self.grid = normal_grid(normals)
-
-    def residuals(self, attitudes: np.ndarray) -> np.ndarray:
-        epochs = FitEpochs.from_observations([self.part], [attitudes])
-        return egi_residuals(epochs, self.material, self.grid)
-
-    def screen(self, states: Sequence[TorqueFreeState]) -> np.ndarray:
-        """χ² (S,) of many states, their trajectories integrated in one batch."""
-        first = np.array([s.first for s in states])
-        omega = np.array([s.omega for s in states])
-        inertia = np.zeros((len(states), 3, 3))
-        inertia[:, 0, 0] = 1.0
-        inertia[:, 1, 1], inertia[:, 2, 2] = np.array([s.ratios for s in states]).T
-        batch = torque_free_trajectory(first, omega, self.seconds, inertia)[0]
-        return np.array([np.sum(self.residuals(q) ** 2) for q in batch])
+def _screen(profile: EGIProfile, states: Sequence[TorqueFreeState]) -> np.ndarray:
+    """Profile χ² (S,) of many states, their trajectories integrated in one batch."""
+    first = np.array([s.first for s in states])
+    omega = np.array([s.omega for s in states])
+    inertia = np.zeros((len(states), 3, 3))
+    inertia[:, 0, 0] = 1.0
+    inertia[:, 1, 1], inertia[:, 2, 2] = np.array([s.ratios for s in states]).T
+    batch = torque_free_trajectory(first, omega, profile.seconds, inertia)[0]
+    return np.array([profile.chi2(attitude_matrix(q)) for q in batch])
 
 
 def refine_state(
@@ -237,7 +224,7 @@ def refine_state(
     chi2 : float
         Its profile χ² on that grid and those epochs.
     """
-    profile = _Profile(obs, material, normals, epochs)
+    profile = EGIProfile(obs, material, normals=normals, epochs=epochs)
     base = attitude_matrix(state.first)
 
     def unpack(x: np.ndarray) -> TorqueFreeState:
@@ -245,7 +232,7 @@ def refine_state(
         return TorqueFreeState(quaternion_from_matrix(turn @ base), x[5:], np.exp(x[:2]))
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return profile.residuals(unpack(x).attitudes(profile.seconds))
+        return profile.residuals(attitude_matrix(unpack(x).attitudes(profile.seconds)))
 
     x0 = np.concatenate([np.log(state.ratios), np.zeros(3), state.omega])
     found = least_squares(
@@ -333,8 +320,8 @@ def search_states(
     """
     rng = np.random.default_rng(seed)
     candidates = random_states(max(screened, starts), rng, rate_range)
-    coarse = _Profile(obs, material, SCREEN_NORMALS, SCREEN_EPOCHS)
-    order = np.argsort(coarse.screen(candidates))[:starts]
+    coarse = EGIProfile(obs, material, normals=SCREEN_NORMALS, epochs=SCREEN_EPOCHS)
+    order = np.argsort(_screen(coarse, candidates))[:starts]
     descended = [
         refine_state(
             obs,

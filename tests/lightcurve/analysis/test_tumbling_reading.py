@@ -6,11 +6,13 @@ import pytest
 from benchmarks.tumbling_periods import simulate_run
 from filters.attitude import attitude_matrix
 from filters.attitude.torque_free_periods import euler_periods
+from lightcurve.analysis.egi.profile import EGIProfile
 from lightcurve.analysis.tumbling_reading import (
+    CONVEX_LAW,
     MAX_MOMENT_RATIO,
     SCREEN_EPOCHS,
+    SCREEN_NORMALS,
     ConvexDecision,
-    ConvexProfile,
     ReadingFit,
     decide_reading,
     motions_with_ratio,
@@ -58,7 +60,7 @@ def test_true_reading_wins_on_a_simulated_tumbler(run, mode):
     assert np.allclose([best.reading.f_phi, best.reading.f_psi], pair, rtol=1e-9)
     assert best.reading.mode == mode and not decision.ambiguous
     # Within twice the χ² of the simulator's own attitudes (the law's and the grid's floor).
-    profile = ConvexProfile(sim)
+    profile = EGIProfile(sim, CONVEX_LAW, normals=SCREEN_NORMALS, epochs=SCREEN_EPOCHS)
     step = int(np.ceil(len(sim) / SCREEN_EPOCHS))
     assert best.chi2 < 2.0 * profile.chi2(attitude_matrix(sim.truth[::step, :4]))
 
